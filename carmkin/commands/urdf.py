@@ -1,0 +1,26 @@
+"""Write the URDF of a preset, generated from urdf/carm_table.urdf.xacro (lengths in m, angles in rad)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from ._common import add_preset_argument, system_from_args
+
+HELP = "write the URDF of a preset (to stdout or -o FILE)"
+
+
+def register(parser: argparse.ArgumentParser) -> None:
+    add_preset_argument(parser)
+    parser.add_argument("-o", "--output", help="file to write (default: standard output)")
+
+
+def run(args: argparse.Namespace) -> int:
+    text = system_from_args(args).urdf()
+    if args.output:
+        with open(args.output, "w") as stream:
+            stream.write(text)
+        print(f"wrote {args.output}", file=sys.stderr)
+    else:
+        sys.stdout.write(text)
+    return 0

@@ -1,0 +1,90 @@
+"""`CArmSystem`: the one source of truth for a C-arm + table model (geometry, limits, setup, body)."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from . import kinematics
+from .geometry import JOINT_NAMES, BodyGeometry, CArmGeometry, JointRange, TableGeometry, TableSetup
+from .transforms import translation
+
+
+@dataclass(frozen=True)
+class CArmSystem:
+    """A mobile C-arm and an operating table modelled as one 6-DOF chain (§4.3).
+
+    The joint vector is ``q = [d0, d1, theta2, d3, theta4, theta5]`` (m, m, rad, m, rad, rad): table
+    translation, vertical, wigwag, horizontal, angular, orbital. Poses are expressed in the table frame 0.
+    """
+
+    carm: CArmGeometry
+    setup: TableSetup
+    table: TableGeometry = field(default_factory=TableGeometry)
+    body: BodyGeometry = field(default_factory=BodyGeometry)
+    name: str = "custom"
+
+    def replace(self, **changes) -> "CArmSystem":
+        """A new system with some fields replaced, e.g. ``system.replace(carm=..., setup=...)``."""
+        return dataclasses.replace(self, **changes)
+
+    # --- joints ---------------------------------------------------------------------------------------
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        """Names of the six joints, in the order of q."""
+        return JOINT_NAMES
+
+    @property
+    def joint_ranges(self) -> tuple[JointRange, ...]:
+        """Ranges of the six joints, in the order of q (m or rad)."""
+        return (self.table.translation,) + self.carm.joint_ranges
+
+    @property
+    def lower(self) -> np.ndarray:
+        """Lower joint limits (6,)."""
+        return np.array([r.lower for r in self.joint_ranges])
+
+    @property
+    def upper(self) -> np.ndarray:
+        """Upper joint limits (6,)."""
+        return np.array([r.upper for r in self.joint_ranges])
+
+    # --- closed-form kinematics ------------------------------------------------------------------------
+    @cached_property
+    def dh_table(self) -> tuple[kinematics.DHRow, ...]:
+        """The six standard-DH rows of the chain (see :mod:`carmkin.kinematics`)."""
+        return kinematics.dh_table(self.carm, self.setup)
+
+    @cached_property
+    def xray_in_flange(self) -> np.ndarray:
+        """``6T_xray`` (eq. 4.2), pose of the X-ray source frame in frame 6."""
+        return kinematics.xray_in_flange(self.carm)
+
+    @cached_property
+    def detector_in_xray(self) -> np.ndarray:
+        """Pose of the ``detector`` frame in the source frame: on the principal axis at the SDD."""
+        return translation(z=self.carm.source_to_detector)
+
+    def fk(self, q) -> np.ndarray:
+        """Pose of ``xray_source`` in the table frame: (4, 4) for q of shape (6,), (N, 4, 4) for (N, 6)."""
+        return kinematics.forward(self.dh_table, self.xray_in_flange, q)
+
+    def dh_frames(self, q) -> np.ndarray:
+        """Poses of DH frames 1..6 in the table frame: (6, 4, 4) for q (6,), (N, 6, 4, 4) for (N, 6)."""
+        return kinematics.dh_frames(self.dh_table, q)
+
+    # --- generated descriptions ----------------------------------------------------------------------
+    def urdf(self) -> str:
+        """URDF text of the chain, generated from ``urdf/carm_table.urdf.xacro`` with this system's numbers."""
+        from .description import urdf_text
+
+        return urdf_text(self)
+
+    def pinocchio(self):
+        """``(model, collision_model, visual_model)`` built by Pinocchio from :meth:`urdf`."""
+        from .robot_model import build_models
+
+        return build_models(self.urdf())
