@@ -84,7 +84,15 @@ class CArmSystem:
         return urdf_text(self)
 
     def pinocchio(self):
-        """``(model, collision_model, visual_model)`` built by Pinocchio from :meth:`urdf`."""
+        """``(model, collision_model, visual_model)`` built by Pinocchio from :meth:`urdf`.
+
+        Built once per system and cached: treat the returned models as read-only (create your own
+        ``pin.Data`` / ``pin.GeometryData`` from them).
+        """
+        return self._pinocchio_models
+
+    @cached_property
+    def _pinocchio_models(self):
         from .robot_model import build_models
 
         return build_models(self.urdf())
