@@ -68,9 +68,14 @@ class CArmSystem:
         """Pose of the ``detector`` frame in the source frame: on the principal axis at the SDD."""
         return translation(z=self.carm.source_to_detector)
 
+    @cached_property
+    def _closed_form(self) -> kinematics.ClosedFormFK:
+        return kinematics.ClosedFormFK(self.carm, self.setup)
+
     def fk(self, q) -> np.ndarray:
         """Pose of ``xray_source`` in the table frame: (4, 4) for q of shape (6,), (N, 4, 4) for (N, 6)."""
-        return kinematics.forward(self.dh_table, self.xray_in_flange, q)
+        q = kinematics.check_configuration(q)
+        return self._closed_form.pose(q) if q.ndim == 1 else self._closed_form.poses(q)
 
     def dh_frames(self, q) -> np.ndarray:
         """Poses of DH frames 1..6 in the table frame: (6, 4, 4) for q (6,), (N, 6, 4, 4) for (N, 6)."""
