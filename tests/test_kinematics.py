@@ -124,3 +124,12 @@ def test_detector_frame_is_on_the_principal_axis():
     detector = data.oMf[model.getFrameId("detector")]
     offset = source.actInv(detector.translation)
     assert np.allclose(offset, [0, 0, PRESET.carm.source_to_detector], atol=1e-14)
+
+
+@given(systems(), st.lists(configurations(beyond=0.5), min_size=1, max_size=10))
+def test_expanded_closed_form_equals_the_dh_product_and_pinocchio(system, qs):
+    q = np.array(qs)
+    dh_product = system.dh_frames(q)[:, -1] @ system.xray_in_flange
+    assert np.abs(system.fk(q) - dh_product).max() <= 1e-14
+    pinocchio_source = pinocchio_frames(system, q)[:, FRAMES.index("xray_source")]
+    assert np.abs(system.fk(q) - pinocchio_source).max() <= TOL
