@@ -154,8 +154,9 @@ class ClosedFormFK:
 
     def poses(self, q: np.ndarray) -> np.ndarray:
         """``0T_xray`` (N, 4, 4) for configurations (N, 6), vectorized."""
-        d0, d1, t2, d3, t4, t5 = q.T
-        c2, s2, c4, s4, c5, s5 = np.cos(t2), np.sin(t2), np.cos(t4), np.sin(t4), np.cos(t5), np.sin(t5)
+        d0, d1, d3 = q[:, 0], q[:, 1], q[:, 3]
+        angles = np.ascontiguousarray(q[:, (2, 4, 5)].T)  # one contiguous sin/cos pass is ~2x faster
+        (c2, c4, c5), (s2, s4, s5) = np.cos(angles), np.sin(angles)
         local = np.empty((len(q), 4, 3))  # rows X, Y, Z, p of the source frame, in frame 2
         X, Y, Z, p = local[:, 0], local[:, 1], local[:, 2], local[:, 3]
         c2s4, s2s4 = c2 * s4, s2 * s4

@@ -1,0 +1,31 @@
+"""Browser visualization of a C-arm + table with meshcat (installed as ``carmkin.viz``).
+
+- :class:`CArmViewer`: robot from the URDF, X-ray cone, frames, ghosts, distances, animated moves.
+- :func:`offline_visualizer`: record a scene with no server and write it as one static HTML page.
+- :class:`LoopbackServer`: a live meshcat server listening on 127.0.0.1 only.
+- :func:`screenshot`: render a page to PNG with headless Chromium.
+"""
+
+from .distances import DistanceChecker, PairDistance, collision_pairs
+from .errors import BrowserNotFoundError, ServerError, VisualizationError
+from .screenshot import find_chromium, screenshot
+from .server import LoopbackServer
+from .static import RecordingWindow, offline_visualizer
+from .viewer import CArmViewer, check_configuration, interpolate
+
+__all__ = [
+    "BrowserNotFoundError",
+    "CArmViewer",
+    "DistanceChecker",
+    "LoopbackServer",
+    "PairDistance",
+    "RecordingWindow",
+    "ServerError",
+    "VisualizationError",
+    "check_configuration",
+    "collision_pairs",
+    "find_chromium",
+    "interpolate",
+    "offline_visualizer",
+    "screenshot",
+]
