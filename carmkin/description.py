@@ -13,6 +13,7 @@ import numpy as np
 import pinocchio as pin
 
 from .system import CArmSystem
+from .table_joints import xacro_spec
 
 #: Number of boxes approximating the C's arc.
 C_SEGMENTS = 8
@@ -34,6 +35,9 @@ def xacro_arguments(system: CArmSystem) -> dict[str, str]:
     for i, row in enumerate(system.dh_table):
         args.update({f"r{i}_theta": _fmt(row.theta), f"r{i}_d": _fmt(row.d), f"r{i}_a": _fmt(row.a),
                      f"r{i}_alpha": _fmt(row.alpha)})
+    row0 = system.dh_table[0]  # its constant part Rz(θ) Tz(d) Tx(a) Rx(α) as one URDF origin
+    args.update(r0_a_cos=_fmt(row0.a * np.cos(row0.theta)), r0_a_sin=_fmt(row0.a * np.sin(row0.theta)),
+                table_joints=xacro_spec(table.joints))
     for name, joint_range in zip(system.joint_names, system.joint_ranges):
         args[f"{name}_lower"], args[f"{name}_upper"] = _fmt(joint_range.lower), _fmt(joint_range.upper)
     source = system.xray_in_flange

@@ -194,11 +194,14 @@ class TableGeometry:
             relative to the table along Z0, so the table itself moves by -d0 relative to the C-arm.
         top_size: box extents along X0, Y0, Z0 (m).
         top_center: box centre in frame 0 (m).
+        joints: extra joints of a motorized table (:class:`carmkin.table_joints.TableJoint`), ordered from
+            the table top down; empty for the paper's single translation.
     """
 
     translation: JointRange = field(default_factory=lambda: JointRange(-0.4, 0.4, "table_translation"))
     top_size: tuple[float, float, float] = (0.6, 0.06, 2.0)
     top_center: tuple[float, float, float] = (0.0, 0.18, 0.0)
+    joints: tuple = ()
 
     def __post_init__(self) -> None:
         if not isinstance(self.translation, JointRange):
@@ -209,6 +212,10 @@ class TableGeometry:
             raise InvalidParameterError("TableGeometry.top_size and top_center need three values each")
         object.__setattr__(self, "top_size", size)
         object.__setattr__(self, "top_center", center)
+        object.__setattr__(self, "joints", tuple(self.joints))
+        names = [getattr(j, "name", None) for j in self.joints]
+        if len(set(names)) != len(names) or not all(hasattr(j, "inverse_motion") for j in self.joints):
+            raise InvalidParameterError(f"TableGeometry.joints must be distinct TableJoint objects, got {names}")
 
 
 @dataclass(frozen=True)

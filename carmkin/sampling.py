@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .geometry import PRISMATIC, CArmGeometry, TableSetup
+from .geometry import CArmGeometry, TableSetup
 from .system import CArmSystem
 from .transforms import check_rigid_transform
 
@@ -49,14 +49,14 @@ def random_system(rng: np.random.Generator, base: CArmSystem) -> CArmSystem:
 
 
 def random_configurations(rng: np.random.Generator, system: CArmSystem, n: int, beyond: float = 0.25) -> np.ndarray:
-    """``n`` configurations (n, 6) uniform over the joint ranges widened by ``beyond`` of their span each side.
+    """``n`` configurations (n, nq) uniform over the joint ranges widened by ``beyond`` of their span each side.
 
     Revolute joints are drawn over at least a full turn so that every angle is exercised.
     """
     lower, upper = system.lower, system.upper
     span = upper - lower
     lower, upper = lower - beyond * span, upper + beyond * span
-    revolute = ~np.array(PRISMATIC)
+    revolute = ~np.array(system.prismatic)
     lower = np.where(revolute, np.minimum(lower, -np.pi), lower)
     upper = np.where(revolute, np.maximum(upper, np.pi), upper)
-    return rng.uniform(lower, upper, size=(n, 6))
+    return rng.uniform(lower, upper, size=(n, system.nq))

@@ -9,7 +9,7 @@ from functools import cached_property
 import numpy as np
 
 from . import kinematics
-from .geometry import JOINT_NAMES, BodyGeometry, CArmGeometry, JointRange, TableGeometry, TableSetup
+from .geometry import JOINT_NAMES, PRISMATIC, BodyGeometry, CArmGeometry, JointRange, TableGeometry, TableSetup
 from .transforms import translation
 
 
@@ -33,14 +33,49 @@ class CArmSystem:
 
     # --- joints ---------------------------------------------------------------------------------------
     @property
+    def nq(self) -> int:
+        """Number of joints: 6, plus the extra joints of a motorized table (:mod:`carmkin.table_joints`)."""
+        return 6 + len(self.table.joints)
+
+    @property
     def joint_names(self) -> tuple[str, ...]:
-        """Names of the six joints, in the order of q."""
-        return JOINT_NAMES
+        """Names of the joints in the order of q: table translation, extra table joints (top down), C-arm."""
+        return JOINT_NAMES[:1] + tuple(j.name for j in self.table.joints) + JOINT_NAMES[1:]
 
     @property
     def joint_ranges(self) -> tuple[JointRange, ...]:
-        """Ranges of the six joints, in the order of q (m or rad)."""
-        return (self.table.translation,) + self.carm.joint_ranges
+        """Ranges of the joints, in the order of q (m or rad)."""
+        return (self.table.translation,) + tuple(j.range for j in self.table.joints) + self.carm.joint_ranges
+
+    @property
+    def prismatic(self) -> tuple[bool, ...]:
+        """True for each prismatic joint (m), False for each revolute one (rad), in the order of q."""
+        return PRISMATIC[:1] + tuple(j.prismatic for j in self.table.joints) + PRISMATIC[1:]
+
+    def split(self, q) -> tuple[np.ndarray, np.ndarray]:
+        """``(q6, q_table)``: the paper's six joints and the extra table joints of q (nq,) or (N, nq)."""
+        q = kinematics.check_configuration(q, self.nq)
+        k = len(self.table.joints)
+        return np.concatenate((q[..., :1], q[..., 1 + k:]), axis=-1), q[..., 1:1 + k]
+
+    def _table_motion(self, q_table: np.ndarray) -> np.ndarray:
+        """``e^{-ξk qk} ··· e^{-ξ1 q1}`` for extra table joint values (k,) or (N, k): (4, 4) or (N, 4, 4)."""
+        from .table_joints import inverse_chain
+
+        if q_table.ndim == 1:
+            return inverse_chain(self.table.joints, q_table)
+        return np.array([inverse_chain(self.table.joints, v) for v in q_table])
+
+    def _with_table_joints(self, q, poses_of_q6) -> np.ndarray:
+        """Poses ``Tz(d0) · E(q_table) · P(q6 with d0 = 0)`` for poses P computed by ``poses_of_q6``."""
+        q6, q_table = self.split(q)
+        d0 = q6[..., 0].copy()
+        q6 = q6.copy()
+        q6[..., 0] = 0.0
+        E = self._table_motion(q_table)
+        E[..., 2, 3] += d0
+        P = poses_of_q6(q6)
+        return E[..., None, :, :] @ P if P.ndim == E.ndim + 1 else E @ P
 
     @property
     def lower(self) -> np.ndarray:
@@ -73,12 +108,18 @@ class CArmSystem:
         return kinematics.ClosedFormFK(self.carm, self.setup)
 
     def fk(self, q) -> np.ndarray:
-        """Pose of ``xray_source`` in the table frame: (4, 4) for q of shape (6,), (N, 4, 4) for (N, 6)."""
-        q = kinematics.check_configuration(q)
-        return self._closed_form.pose(q) if q.ndim == 1 else self._closed_form.poses(q)
+        """Pose of ``xray_source`` in the table frame: (4, 4) for q of shape (nq,), (N, 4, 4) for (N, nq)."""
+        if self.table.joints:
+            return self._with_table_joints(q, self._fk6)
+        return self._fk6(kinematics.check_configuration(q))
+
+    def _fk6(self, q6: np.ndarray) -> np.ndarray:
+        return self._closed_form.pose(q6) if q6.ndim == 1 else self._closed_form.poses(q6)
 
     def dh_frames(self, q) -> np.ndarray:
-        """Poses of DH frames 1..6 in the table frame: (6, 4, 4) for q (6,), (N, 6, 4, 4) for (N, 6)."""
+        """Poses of DH frames 1..6 in the table frame: (6, 4, 4) for q (nq,), (N, 6, 4, 4) for (N, nq)."""
+        if self.table.joints:
+            return self._with_table_joints(q, lambda q6: kinematics.dh_frames(self.dh_table, q6))
         return kinematics.dh_frames(self.dh_table, q)
 
     # --- generated descriptions ----------------------------------------------------------------------

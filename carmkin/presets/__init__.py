@@ -13,6 +13,7 @@ from .. import kinematics
 from ..errors import InvalidParameterError, UnknownPresetError
 from ..geometry import BodyGeometry, CArmGeometry, JointRange, TableGeometry, TableSetup
 from ..system import CArmSystem
+from ..table_joints import CHAIN_ORDER, KINDS, standard_joints
 
 _MM = 1e-3
 _CARM_JOINTS = {"vertical": _MM, "wigwag": math.pi / 180, "horizontal": _MM, "angular": math.pi / 180,
@@ -38,7 +39,27 @@ def load_preset(name_or_path: str | Path) -> CArmSystem:
         if name not in list_presets():
             raise UnknownPresetError(f"unknown preset {name!r}; available: {', '.join(list_presets())}")
         text = (_preset_dir() / f"{name}.toml").read_text()
-    return system_from_dict(tomllib.loads(text), default_name=name)
+    return system_from_dict(_resolve_base(tomllib.loads(text)), default_name=name)
+
+
+def _resolve_base(data: dict, depth: int = 0) -> dict:
+    """Merge a preset over the preset named by its ``base`` key (sections merged key by key)."""
+    if "base" not in data:
+        return data
+    if depth > 8:
+        raise InvalidParameterError("preset: 'base' chain too deep (a cycle?)")
+    base_name = data["base"]
+    if base_name not in list_presets():
+        raise UnknownPresetError(f"unknown base preset {base_name!r}; available: {', '.join(list_presets())}")
+    merged = _resolve_base(tomllib.loads((_preset_dir() / f"{base_name}.toml").read_text()), depth + 1)
+    return _merge(merged, {k: v for k, v in data.items() if k != "base"})
+
+
+def _merge(base: dict, override: dict) -> dict:
+    out = dict(base)
+    for key, value in override.items():
+        out[key] = _merge(out[key], value) if isinstance(value, dict) and isinstance(out.get(key), dict) else value
+    return out
 
 
 def _get(section: dict, key: str, where: str):
@@ -108,6 +129,24 @@ def _mm3(values, key: str) -> tuple[float, float, float]:
     return tuple(v * _MM for v in values)
 
 
+def _table_joints(section: dict) -> tuple:
+    """Extra table joints from ``[table.joints]``: ``<name>_min/max_mm|deg``, ``up_in_table``, ``pivot_mm``."""
+    if not section:
+        return ()
+    ranges = {}
+    for name in CHAIN_ORDER:
+        prismatic = KINDS[name][0]
+        unit, scale = ("mm", _MM) if prismatic else ("deg", math.pi / 180)
+        if f"{name}_min_{unit}" in section or f"{name}_max_{unit}" in section:
+            ranges[name] = _range(section, name, scale, unit, "table.joints")
+    known = {f"{n}_{b}_{'mm' if KINDS[n][0] else 'deg'}" for n in CHAIN_ORDER for b in ("min", "max")}
+    unknown = set(section) - known - {"up_in_table", "pivot_mm"}
+    if unknown:
+        raise InvalidParameterError(f"preset: unknown key(s) in [table.joints]: {sorted(unknown)}")
+    return standard_joints(ranges, _get(section, "up_in_table", "table.joints"),
+                           _mm3(_get(section, "pivot_mm", "table.joints"), "pivot_mm"))
+
+
 def system_from_dict(data: dict, default_name: str = "custom") -> CArmSystem:
     """Build a :class:`CArmSystem` from a parsed preset (mm/deg keys, see ``siremobile-iso-c3d.toml``)."""
     carm = _carm(_get(data, "carm", "top level"))
@@ -115,6 +154,7 @@ def system_from_dict(data: dict, default_name: str = "custom") -> CArmSystem:
     t = data.get("table", {})
     table_defaults = TableGeometry()
     table = TableGeometry(
+        joints=_table_joints(t.get("joints", {})),
         translation=_range(t, "translation", _MM, "mm", "table", "table_translation")
         if "translation_min_mm" in t else table_defaults.translation,
         top_size=_mm3(t["top_size_mm"], "top_size_mm") if "top_size_mm" in t else table_defaults.top_size,
