@@ -1,0 +1,256 @@
+"""`CArmViewer`: the C-arm + table in meshcat, with the X-ray cone, frames, ghosts, distances and moves.
+
+Scene frame: everything is expressed in the table frame 0 (the root of the Pinocchio model), under one
+meshcat node ``/meshcat/carmkin`` whose constant transform only rotates the table frame so that the C-arm
+cart stands upright: the rotation of the cart frame ``carm_cart`` at q = 0, inverted. The origin stays the
+table origin (the isocentre for the presets), which is where the browser camera looks. In the browser, Z
+points up along the column, the floor is horizontal and the table stays still; the table translation d0
+moves the whole C-arm (cart included) along the table, as the chain says (d0 is the C-arm's displacement
+relative to the table).
+
+Node layout under ``/meshcat/carmkin``: ``robot`` (Pinocchio's visuals; collisions hidden), ``cone`` (the
+X-ray pyramid at ``xray_source``), ``frames/table`` and ``frames/xray_source`` (triads), ``ghost`` (the
+robot and cone at a target configuration), ``targets/<name>`` (source housing + cone at a 4x4 pose),
+``shots/<name>/<i>`` (cones of planned shots), ``distances`` (C-arm parts near the table/floor).
+"""
+
+from __future__ import annotations
+
+import meshcat
+import meshcat.geometry as mg
+import numpy as np
+import pinocchio as pin
+from meshcat.animation import Animation
+from pinocchio.visualize import MeshcatVisualizer
+
+from carmkin.errors import InvalidConfigurationError
+from carmkin.system import CArmSystem
+from carmkin.transforms import check_rigid_transform
+
+from . import shapes
+from .distances import DistanceChecker, PairDistance, distance_color
+from .errors import VisualizationError
+from .static import RecordingWindow, offline_visualizer
+
+ROOT = "carmkin"
+#: Camera position in the scene frame (m), looking at the table origin: front-right, above.
+CAMERA_OFFSET = (1.4, 1.7, 0.9)
+#: Links left out of the ghost copy: the environment, which does not move with the C-arm joints.
+NOT_IN_GHOST = ("table", "floor")
+
+
+def check_configuration(system: CArmSystem, q, name: str = "q") -> np.ndarray:
+    """``q`` as a (6,) float array; :class:`InvalidConfigurationError` naming the joint if out of range."""
+    q = np.asarray(q, dtype=float)
+    if q.shape != (6,) or not np.all(np.isfinite(q)):
+        raise InvalidConfigurationError(f"{name} must be 6 finite numbers (m, rad), got {q!r}")
+    for value, joint_range in zip(q, system.joint_ranges):
+        excess = float(joint_range.excess(value))
+        if excess != 0.0:
+            raise InvalidConfigurationError(
+                f"{name}: {joint_range.name} = {value:.6g} is outside [{joint_range.lower:.6g}, "
+                f"{joint_range.upper:.6g}] by {excess:+.3g}")
+    return q
+
+
+def interpolate(q_from, q_to, frames: int) -> np.ndarray:
+    """(frames, 6) configurations from ``q_from`` to ``q_to``, linear in joint space, both ends included."""
+    if frames < 2:
+        raise InvalidConfigurationError(f"a move needs at least 2 frames, got {frames}")
+    s = np.linspace(0.0, 1.0, frames)[:, None]
+    return (1.0 - s) * np.asarray(q_from, dtype=float) + s * np.asarray(q_to, dtype=float)
+
+
+class CArmViewer:
+    """Draws a :class:`CArmSystem` into a meshcat visualizer.
+
+    Args:
+        system: the C-arm + table.
+        vis: a ``meshcat.Visualizer``; ``None`` records offline (see :func:`carmkin.viz.offline_visualizer`,
+            then :meth:`static_html`). For a live page use ``LoopbackServer().start().visualizer()``.
+        q: initial configuration (m, rad); ``None`` is the middle of the joint ranges.
+    """
+
+    def __init__(self, system: CArmSystem, vis: meshcat.Visualizer | None = None, q=None) -> None:
+        self.system = system
+        self.vis = offline_visualizer(f"carmkin: {system.name}") if vis is None else vis
+        self.root = self.vis[ROOT]
+        model, collision_model, visual_model = system.pinocchio()
+        self.model = model
+        self.robot = self._load_robot(f"{ROOT}/robot", collision_model, visual_model, color=None)
+        self._ghost: MeshcatVisualizer | None = None
+        self._distances: DistanceChecker | None = None
+        self.q = check_configuration(system, (system.lower + system.upper) / 2 if q is None else q)
+        self.scene_in_world = np.eye(4)  # constant rotation, see the module docstring
+        self.scene_in_world[:3, :3] = self._frame_pose(np.zeros(6), "carm_cart")[:3, :3].T
+        self.root.set_transform(self.scene_in_world)
+        self._draw_cone(self.root["cone"], shapes.CONE_RGB, 0.3)
+        self._draw_triad(self.root["frames/table"], np.eye(4), 0.3)
+        self._draw_triad(self.root["frames/xray_source"], np.eye(4), 0.2)
+        self._set_camera()
+        self.display(self.q)
+
+    # --- current configuration ------------------------------------------------------------------------
+    def display(self, q) -> None:
+        """Move the robot, the cone and the source triad to ``q`` (6,) (m, rad)."""
+        self.q = check_configuration(self.system, q)
+        self.robot.display(self.q)
+        source = self._frame_pose(self.q, "xray_source")
+        self.root["cone"].set_transform(source)
+        self.root["frames/xray_source"].set_transform(source)
+
+    # --- targets, ghosts and shots -------------------------------------------------------------------
+    def show_ghost(self, q_target, show_robot: bool = True) -> None:
+        """A translucent copy of the robot (and its cone) at configuration ``q_target`` (m, rad)."""
+        q_target = check_configuration(self.system, q_target, "q_target")
+        if show_robot:
+            if self._ghost is None:
+                self._ghost = self._load_robot(f"{ROOT}/ghost/robot", None, self._ghost_model(),
+                                               color=[*shapes.GHOST_RGB, 0.3])
+            self._ghost.display(q_target)
+        self._draw_cone(self.root["ghost/cone"], shapes.GHOST_RGB, 0.2)
+        self.root["ghost/cone"].set_transform(self._frame_pose(q_target, "xray_source"))
+
+    def show_target_pose(self, T_source, name: str = "target") -> None:
+        """A translucent source housing and cone at ``T_source`` (4x4 pose of ``xray_source``, table frame, m)."""
+        T_source = check_rigid_transform(T_source, "T_source")
+        node = self.root[f"targets/{name}"]
+        node.delete()
+        fid = self.model.getFrameId("xray_source")
+        frame_in_joint = self.model.frames[fid].placement
+        _, _, visual_model = self.system.pinocchio()
+        for geometry in visual_model.geometryObjects:
+            if geometry.parentFrame == fid:  # the housing, placed relative to the source frame
+                obj = self.robot.loadPrimitive(geometry)
+                node[geometry.name].set_object(obj, mg.MeshLambertMaterial(
+                    color=shapes.hex_color(shapes.GHOST_RGB), opacity=0.35, transparent=True))
+                node[geometry.name].set_transform((frame_in_joint.inverse() * geometry.placement).homogeneous)
+        self._draw_cone(node["cone"], shapes.GHOST_RGB, 0.2)
+        node.set_transform(T_source)
+
+    def draw_shots(self, poses, name: str = "planned", rgb=(0.95, 0.35, 0.85)) -> None:
+        """Cones at a list of source poses (N, 4, 4) in the table frame (m), e.g. a panorama's shots."""
+        poses = check_rigid_transform(np.asarray(poses, dtype=float).reshape(-1, 4, 4), "poses", batch=True)
+        node = self.root[f"shots/{name}"]
+        node.delete()
+        for i, pose in enumerate(poses):
+            self._draw_cone(node[str(i)], rgb, 0.12)
+            node[str(i)].set_transform(pose)
+
+    # --- distances ------------------------------------------------------------------------------------
+    def show_distances(self, q=None, margin: float = 0.1) -> list[PairDistance]:
+        """Colour the C-arm parts within ``margin`` (m) of the table top or the floor, at ``q`` (default: current).
+
+        Each close part gets a translucent overlay, red when in collision (distance <= 0) through orange to
+        yellow at ``margin``, and a line between the nearest points. Returns all pair distances.
+        """
+        q = self.q if q is None else check_configuration(self.system, q)
+        if not margin > 0:
+            raise VisualizationError(f"margin must be > 0 m, got {margin}")
+        if self._distances is None:
+            self._distances = DistanceChecker(self.system)
+        checker = self._distances
+        pairs = checker.distances(q)
+        node = self.root["distances"]
+        node.delete()
+        closest: dict[str, PairDistance] = {}
+        for pair in pairs:
+            if pair.distance < margin and (pair.part not in closest or pair.distance < closest[pair.part].distance):
+                closest[pair.part] = pair
+        geometry_data = pin.GeometryData(checker.collision_model)
+        pin.updateGeometryPlacements(checker.model, checker.data, checker.collision_model, geometry_data, q)
+        for part, pair in closest.items():
+            gid = checker.collision_model.getGeometryId(part)
+            color = shapes.hex_color(distance_color(pair.distance, margin))
+            obj = self.robot.loadPrimitive(checker.collision_model.geometryObjects[gid])
+            node[part].set_object(obj, mg.MeshLambertMaterial(color=color, opacity=0.6, transparent=True))
+            node[part].set_transform(geometry_data.oMg[gid].homogeneous @ np.diag([1.03, 1.03, 1.03, 1.0]))
+            segment = np.array([pair.point_part, pair.point_obstacle], dtype=np.float32).T
+            node[f"{part}_to_{pair.obstacle}"].set_object(
+                mg.LineSegments(mg.PointsGeometry(segment), mg.LineBasicMaterial(color=color)))
+        return pairs
+
+    # --- moves ----------------------------------------------------------------------------------------
+    def animate(self, q_to, q_from=None, frames: int = 40, fps: float = 20.0, repetitions: int = 1,
+                play: bool = True) -> np.ndarray:
+        """Animate a move from ``q_from`` (default: current) to ``q_to``, linear in joint space (m, rad).
+
+        Sends one meshcat animation (robot, cone, source triad) that the browser plays by itself, with
+        play/pause/scrub controls in its "Animations" panel: nothing waits for a browser. The robot ends at
+        ``q_to``. The distance overlay belongs to one configuration and is removed. Returns the
+        (frames, 6) configurations.
+        """
+        q_from = self.q if q_from is None else check_configuration(self.system, q_from, "q_from")
+        q_to = check_configuration(self.system, q_to, "q_to")
+        if not fps > 0:
+            raise VisualizationError(f"fps must be > 0, got {fps}")
+        path = interpolate(q_from, q_to, frames)
+        self.root["distances"].delete()
+        animation = Animation(default_framerate=fps)
+        geometry_data = self.robot.visual_data
+        for i, q in enumerate(path):
+            frame = animation.at_frame(self.vis, i)
+            pin.forwardKinematics(self.model, self.robot.data, q)
+            pin.updateGeometryPlacements(self.model, self.robot.data, self.robot.visual_model, geometry_data)
+            for gid, geometry in enumerate(self.robot.visual_model.geometryObjects):
+                name = self.robot.getViewerNodeName(geometry, pin.GeometryType.VISUAL)
+                frame[name].set_transform(geometry_data.oMg[gid].homogeneous)
+            source = self._frame_pose(q, "xray_source")
+            frame[f"{ROOT}/cone"].set_transform(source)
+            frame[f"{ROOT}/frames/xray_source"].set_transform(source)
+        self.display(q_to)
+        self.vis.set_animation(animation, play=play, repetitions=repetitions)
+        return path
+
+    # --- output ---------------------------------------------------------------------------------------
+    def static_html(self) -> str:
+        """The scene as one self-contained HTML page (three.js viewer inlined, ~0.9 MB)."""
+        return self.vis.static_html()
+
+    def save_html(self, path) -> None:
+        """Write :meth:`static_html` to ``path``."""
+        with open(path, "w", encoding="utf-8") as stream:
+            stream.write(self.static_html())
+
+    def _repr_html_(self) -> str:
+        """Inline display in Jupyter: the recorded page in an iframe, or the live page when served."""
+        if isinstance(self.vis.window, RecordingWindow):
+            return self.vis.render_static(height=480).data
+        return self.vis.jupyter_cell(height=480).data
+
+    # --- internals ------------------------------------------------------------------------------------
+    def _load_robot(self, root: str, collision_model, visual_model, color) -> MeshcatVisualizer:
+        robot = MeshcatVisualizer(self.model, collision_model, visual_model)
+        robot.initViewer(viewer=self.vis)
+        robot.loadViewerModel(rootNodeName=root, visual_color=color)
+        return robot
+
+    def _ghost_model(self) -> pin.GeometryModel:
+        """The visual model without the table and the floor."""
+        _, _, visual_model = self.system.pinocchio()
+        ghost = pin.GeometryModel()
+        for geometry in visual_model.geometryObjects:
+            if self.model.frames[geometry.parentFrame].name not in NOT_IN_GHOST:
+                ghost.addGeometryObject(geometry)
+        return ghost
+
+    def _frame_pose(self, q, frame: str) -> np.ndarray:
+        data = self.model.createData()
+        pin.framesForwardKinematics(self.model, data, np.asarray(q, dtype=float))
+        return data.oMf[self.model.getFrameId(frame)].homogeneous
+
+    def _draw_cone(self, node, rgb, opacity: float) -> None:
+        surface, outline = shapes.xray_cone(self.system.carm, rgb, opacity)
+        node["surface"].set_object(surface)
+        node["outline"].set_object(outline)
+
+    def _draw_triad(self, node, pose: np.ndarray, length: float) -> None:
+        for axis, (geometry, material, placement) in zip("xyz", shapes.triad(length)):
+            node[axis].set_object(geometry, material)
+            node[axis].set_transform(placement)
+        node.set_transform(pose)
+
+    def _set_camera(self) -> None:
+        x, y, z = CAMERA_OFFSET  # the camera looks at the world origin, the table origin
+        self.vis["/Cameras/default/rotated/<object>"].set_property("position", [x, z, -y])  # three.js is Y-up
+        self.vis["/Grid"].set_property("visible", False)  # the model has its own floor
