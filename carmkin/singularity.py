@@ -1,0 +1,468 @@
+"""Kinematic singularities of the 6-DOF C-arm + table chain (§4.3.2, eq. 4.7).
+
+Convention of the manipulator Jacobian (:func:`jacobian`): Pinocchio's frame Jacobian of ``xray_source``
+in ``LOCAL_WORLD_ALIGNED``, i.e. the twist of the source expressed **at the source centre, along the
+table-frame axes**, rows **linear first** ``[v; ω]`` (m/s, rad/s), columns in the order of q (m/s and
+rad/s of the joints). In this convention Pinocchio's ``det J`` equals eq. 4.7 *sign included*:
+
+    det J = (sγ3 cθ2 + cγ3 sθ2) · sγ1 · cθ4 = sin(θ2 + γ3) · sin γ1 · cos θ4
+
+for any geometry (a1, a2, l1, l2) and table setup (γ2, D1..D3 drop out). Why: with the prismatic columns
+(d0, d1, d3) moved first the matrix is block triangular, ``det J = det[z0 z1 z3] · det[z2 z4 z5]`` (one
+column swap, sign −1), and the two 3×3 determinants are ``−sin(θ2 + γ3) sin γ1`` and ``cos θ4``.
+The value does not depend on the point or the axes the twist is expressed in (``LOCAL``, ``WORLD`` and
+``LOCAL_WORLD_ALIGNED`` differ by an adjoint map of determinant 1); it changes sign if the rows are put
+angular first (three row swaps). It is dimensionless, since the linear rows of the revolute columns
+(the only entries in m) do not enter the block-triangular product.
+
+Measures (:func:`measures`) use the *scaled* Jacobian ``Js = diag(I3/L, I3) · J · diag(L for prismatic,
+1 for revolute)`` with a characteristic length L (default: the orbital offset l2, the lever arm from the
+source to the angular axis): linear velocities in units of L/s and prismatic rates in L/s, so every entry
+is dimensionless and singular values of mixed joints compare. ``det Js = det J`` (three factors L cancel
+three 1/L), so |det J| and the Yoshikawa manipulability ``sqrt(det(Js Jsᵀ)) = |det Js|`` are scale-free;
+the smallest singular value and the condition number depend on L.
+
+The three singular sets (paper's letters):
+
+- ``"a"``: sin γ1 = 0, table axis Z0 ∥ vertical axis Z1 (a property of the setup, not of q);
+- ``"b"``: cos θ4 = 0, orbital axis Z5 ∥ wigwag axis Z2;
+- ``"c"``: sin(θ2 + γ3) = 0, i.e. θ2 ≡ −γ3 (mod π): the horizontal axis Z3 is parallel to the horizontal
+  projection of the table axis (the three prismatic axes are coplanar); for a level table (γ1 = ±90°)
+  this is the paper's "table translation ∥ horizontal movement".
+
+Each factor is the sine of an angle, so :func:`singularity_distances` reports ``asin|factor|`` (rad): the
+change of γ1, θ4 or θ2 that reaches the set.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+import pinocchio as pin
+
+from .errors import CarmkinError
+from .geometry import JOINT_NAMES, PRISMATIC
+from .kinematics import check_configuration
+from .system import CArmSystem
+
+#: Frame whose Jacobian is analysed, and the Pinocchio reference frame (twist at its origin, table axes).
+FRAME = "xray_source"
+REFERENCE_FRAME = pin.LOCAL_WORLD_ALIGNED
+#: The three singular sets of §4.3.2, by the paper's letters.
+CASES = ("a", "b", "c")
+CASE_TITLES = {
+    "a": "table axis Z0 parallel to vertical axis Z1 (sin γ1 = 0)",
+    "b": "orbital axis Z5 parallel to wigwag axis Z2 (cos θ4 = 0)",
+    "c": "horizontal axis Z3 parallel to the table axis's horizontal projection (θ2 = −γ3 mod π)",
+}
+#: What is lost in each case, in words (directions named in the table frame; n is the reported axis).
+CASE_LOSSES = {
+    "a": "table translation and vertical move the source along the same line (self-motion ḋ0 = ∓ḋ1); "
+         "with its orientation held, the source cannot translate along n = Z1 × Z3 (horizontal, across "
+         "the C-arm's horizontal arm)",
+    "b": "wigwag and orbital turn the source about parallel axes (self-motion θ̇2 = ±θ̇5 with compensating "
+         "prismatic moves); the source cannot rotate about n = Z2 × Z4 (horizontal, across the arm)",
+    "c": "table translation, vertical and horizontal are coplanar (self-motion of d0, d1, d3 only); with "
+         "its orientation held, the source cannot translate along n = Z0 × Z1 (the common normal X1)",
+}
+
+
+class SingularityError(CarmkinError):
+    """The request needs what the system does not offer (e.g. a square 6×6 Jacobian)."""
+
+
+class SingularFactors(NamedTuple):
+    """The three factors of eq. 4.7 (dimensionless; arrays broadcast over configurations)."""
+
+    a: np.ndarray  #: sin γ1
+    b: np.ndarray  #: cos θ4
+    c: np.ndarray  #: sin(θ2 + γ3) = sγ3 cθ2 + cγ3 sθ2
+
+
+def _paper_chain(system: CArmSystem, q) -> np.ndarray:
+    if system.nq != 6:
+        raise SingularityError(
+            f"eq. 4.7 and the three singular cases hold for the paper's 6-joint chain; system {system.name!r} "
+            f"has {system.nq} joints ({', '.join(system.joint_names)})")
+    return check_configuration(q, 6)
+
+
+# --- closed form (eq. 4.7), vectorized --------------------------------------------------------------------
+def singular_factors(system: CArmSystem, q) -> SingularFactors:
+    """Factors (sin γ1, cos θ4, sin(θ2 + γ3)) of eq. 4.7 for q (6,) or (N, 6): floats or (N,) arrays."""
+    q = _paper_chain(system, q)
+    theta2, theta4 = q[..., 2], q[..., 4]
+    a = np.sin(system.setup.gamma1 + 0.0 * theta2)  # constant of the setup, shaped like the others
+    return SingularFactors(a, np.cos(theta4), np.sin(theta2 + system.setup.gamma3))
+
+
+def det_closed_form(system: CArmSystem, q) -> np.ndarray:
+    """``det J`` by eq. 4.7 (dimensionless) for q (6,) or (N, 6), in the convention of :func:`jacobian`."""
+    f = singular_factors(system, q)
+    return f.a * f.b * f.c
+
+
+def singularity_distances(system: CArmSystem, q) -> dict[str, np.ndarray]:
+    """Distance to each singular set (rad): ``asin|factor|``, i.e. how far γ1, θ4 or θ2 is from the set.
+
+    Keys are :data:`CASES`; values are floats for q (6,) and (N,) arrays for q (N, 6).
+    """
+    factors = singular_factors(system, q)
+    return {case: np.arcsin(np.minimum(np.abs(f), 1.0)) for case, f in zip(CASES, factors)}
+
+
+# --- Pinocchio ---------------------------------------------------------------------------------------------
+def jacobian(system: CArmSystem, q, reference_frame=REFERENCE_FRAME) -> np.ndarray:
+    """Pinocchio's Jacobian (6, nq) of ``xray_source``: rows ``[v; ω]`` (m/s, rad/s), see module docstring."""
+    q = check_configuration(q, system.nq)
+    if q.ndim != 1:
+        raise SingularityError(f"jacobian takes one configuration (nq,), got shape {q.shape}; use jacobians")
+    model = system.pinocchio()[0]
+    data = model.createData()
+    return pin.computeFrameJacobian(model, data, q, model.getFrameId(FRAME), reference_frame).copy()
+
+
+def jacobians(system: CArmSystem, q, reference_frame=REFERENCE_FRAME) -> np.ndarray:
+    """Jacobians (N, 6, nq) for configurations (N, nq) (one Pinocchio call per configuration)."""
+    q = np.atleast_2d(check_configuration(q, system.nq))
+    model = system.pinocchio()[0]
+    data = model.createData()
+    frame_id = model.getFrameId(FRAME)
+    out = np.empty((len(q), 6, model.nv))
+    for k, qk in enumerate(q):
+        out[k] = pin.computeFrameJacobian(model, data, qk, frame_id, reference_frame)
+    return out
+
+
+def det_jacobian(system: CArmSystem, q) -> np.ndarray:
+    """``det J`` of Pinocchio's Jacobian for q (6,) or (N, 6) (dimensionless)."""
+    q = _paper_chain(system, q)
+    return np.linalg.det(jacobians(system, np.atleast_2d(q))).reshape(q.shape[:-1])
+
+
+# --- scale-aware measures -----------------------------------------------------------------------------------
+def characteristic_length(system: CArmSystem) -> float:
+    """Default characteristic length L (m): the orbital offset l2, source-to-angular-axis lever arm."""
+    return system.carm.orbital_offset
+
+
+def _check_length(system: CArmSystem, length: float | None) -> float:
+    L = characteristic_length(system) if length is None else float(length)
+    if not math.isfinite(L) or L <= 0.0:
+        raise SingularityError(f"characteristic length must be a finite length > 0 m, got {length!r}")
+    return L
+
+
+def scaling(system: CArmSystem, length: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``(S, D)`` with ``Js = diag(S) · J · diag(D)``: S = (1/L)×3 then 1×3, D = L for prismatic joints."""
+    L = _check_length(system, length)
+    S = np.array([1.0 / L] * 3 + [1.0] * 3)
+    D = np.where(np.array(system.prismatic), L, 1.0)
+    return S, D
+
+
+def scaled_jacobian(system: CArmSystem, q, length: float | None = None) -> np.ndarray:
+    """Dimensionless Jacobian ``Js`` (6, nq) (see the module docstring); ``det Js = det J``."""
+    S, D = scaling(system, length)
+    return S[:, None] * jacobian(system, q) * D[None, :]
+
+
+@dataclass(frozen=True)
+class Measures:
+    """Scale-aware closeness-to-singularity measures of one configuration (all dimensionless).
+
+    Attributes:
+        det: signed det J (nan if the Jacobian is not square). abs_det: |det J|.
+        singular_values: of the scaled Jacobian Js, descending.
+        sigma_min: smallest singular value of Js. condition: σmax/σmin (inf at a singularity).
+        manipulability: Yoshikawa's ``sqrt(det(Js Jsᵀ))`` (= |det J| for the square 6-DOF chain).
+        length: characteristic length L used for the scaling (m).
+    """
+
+    det: float
+    abs_det: float
+    singular_values: np.ndarray
+    sigma_min: float
+    condition: float
+    manipulability: float
+    length: float
+
+
+def measures(system: CArmSystem, q, length: float | None = None) -> Measures:
+    """:class:`Measures` of configuration q (nq,) from Pinocchio's Jacobian, scaled by length L (m)."""
+    L = _check_length(system, length)
+    S, D = scaling(system, L)
+    J = jacobian(system, q)
+    return _measures(J, S[:, None] * J * D[None, :], L)
+
+
+def _measures(J: np.ndarray, Js: np.ndarray, length: float) -> Measures:
+    sv = np.linalg.svd(Js, compute_uv=False)
+    det = float(np.linalg.det(J)) if J.shape == (6, 6) else float("nan")
+    condition = float(sv[0] / sv[-1]) if sv[-1] > 0 else math.inf
+    return Measures(det, abs(det), sv, float(sv[-1]), condition, float(np.prod(sv)), length)
+
+
+# --- classification -----------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class CaseReport:
+    """One singular set: its factor (eq. 4.7), distance (rad), membership, the lost axis n (table frame)."""
+
+    case: str
+    title: str
+    factor: float
+    distance: float
+    singular: bool
+    near: bool
+    axis: np.ndarray
+    loss: str
+
+
+@dataclass(frozen=True)
+class Classification:
+    """Which singular sets q is in or near, with the measures and the numerically lost directions.
+
+    Attributes:
+        cases: :class:`CaseReport` per case of :data:`CASES`.
+        rank: numerical rank of the scaled Jacobian (singular values above ``rtol · σmax``).
+        measures: :class:`Measures` at q.
+        joint_null: joint velocity (m/s, rad/s; unit norm in scaled units) closest to moving the source
+            not at all: right singular vector of Js for σmin, mapped back to SI.
+        twist_constraint: u (6,) = left singular vector for σmin, mapped to SI: at a singularity every
+            twist ``[v; ω]`` the source can make satisfies ``u · [v; ω] = 0``.
+    """
+
+    q: np.ndarray
+    cases: dict[str, CaseReport]
+    rank: int
+    measures: Measures
+    joint_null: np.ndarray
+    twist_constraint: np.ndarray = field(repr=False)
+
+    @property
+    def singular_cases(self) -> tuple[str, ...]:
+        """Letters of the sets q lies in (within the tolerance)."""
+        return tuple(c for c, r in self.cases.items() if r.singular)
+
+    @property
+    def near_cases(self) -> tuple[str, ...]:
+        """Letters of the sets q lies within ``near`` of (including those it lies in)."""
+        return tuple(c for c, r in self.cases.items() if r.near)
+
+    def describe(self) -> str:
+        """Multi-line text: per case distance (deg) and status, the rank, the measures and lost directions."""
+        lines = []
+        for c, r in self.cases.items():
+            status = "SINGULAR" if r.singular else ("near" if r.near else "clear")
+            lines.append(f"({c}) {r.title}: factor {r.factor:+.6f}, distance {math.degrees(r.distance):.4f} deg "
+                         f"[{status}]")
+            if r.near:
+                lines.append(f"    lost: {r.loss}; n = {np.array2string(r.axis, precision=4, suppress_small=True)}")
+        m = self.measures
+        lines.append(f"rank {self.rank}; det J {m.det:+.6g}; sigma_min {m.sigma_min:.6g}; condition "
+                     f"{m.condition:.6g}; manipulability {m.manipulability:.6g} (L = {m.length * 1e3:.1f} mm)")
+        kind = "null" if self.rank < len(self.joint_null) else "weakest (closest to null)"
+        lines.append(f"{kind} joint direction (m/s, rad/s): " + ", ".join(
+            f"{n}={v:+.4f}" for n, v in zip(JOINT_NAMES, self.joint_null)))
+        lines.append("twist constraint u on [v; ω]: " + np.array2string(self.twist_constraint, precision=4,
+                                                                        suppress_small=True))
+        return "\n".join(lines)
+
+
+def joint_axes(system: CArmSystem, q) -> np.ndarray:
+    """Unit directions z0..z5 (6, 3) of the joint axes in the table frame, from the DH frames at q (6,)."""
+    q = _paper_chain(system, q)
+    frames = system.dh_frames(q)
+    return np.vstack(([0.0, 0.0, 1.0], frames[:5, :3, 2]))
+
+
+def lost_axes(system: CArmSystem, q) -> dict[str, np.ndarray]:
+    """The axis n of each case's loss (table frame, unit; see :data:`CASE_LOSSES`): Z1×Z3, Z2×Z4, Z0×Z1.
+
+    For case (a) the axis n of a translation, (b) of a rotation, (c) of a translation. Where the cross
+    product vanishes (e.g. Z0 ∥ Z1 for case c at γ1 = 0) the zero vector is returned.
+    """
+    z = joint_axes(system, q)
+    pairs = {"a": (1, 3), "b": (2, 4), "c": (0, 1)}
+    out = {}
+    for case, (i, j) in pairs.items():
+        n = np.cross(z[i], z[j])
+        norm = np.linalg.norm(n)
+        out[case] = n / norm if norm > 1e-12 else np.zeros(3)
+    return out
+
+
+def classify(system: CArmSystem, q, near: float = math.radians(5.0), tol: float = 1e-9,
+             length: float | None = None, rtol: float = 1e-9) -> Classification:
+    """Classify q (6,) against the three singular sets of §4.3.2.
+
+    Args:
+        near: a set within this distance (rad, see :func:`singularity_distances`) counts as near.
+        tol: a set within this distance (rad) counts as reached (singular).
+        length: characteristic length L (m) for the measures; default :func:`characteristic_length`.
+        rtol: singular values below ``rtol · σmax`` of the scaled Jacobian count as zero for the rank.
+    """
+    q = _paper_chain(system, q)
+    if q.ndim != 1:
+        raise SingularityError(f"classify takes one configuration (6,), got shape {q.shape}")
+    if not (0.0 <= tol <= near):
+        raise SingularityError(f"need 0 <= tol <= near (rad), got tol={tol}, near={near}")
+    factors = singular_factors(system, q)
+    distances = singularity_distances(system, q)
+    axes = lost_axes(system, q)
+    cases = {
+        c: CaseReport(c, CASE_TITLES[c], float(f), float(distances[c]), bool(distances[c] <= tol),
+                      bool(distances[c] <= near), axes[c], CASE_LOSSES[c])
+        for c, f in zip(CASES, factors)
+    }
+    L = _check_length(system, length)
+    S, D = scaling(system, L)
+    J = jacobian(system, q)
+    Js = S[:, None] * J * D[None, :]
+    m = _measures(J, Js, L)
+    U, sv, Vt = np.linalg.svd(Js)
+    rank = int(np.sum(sv > rtol * sv[0]))
+    joint_null = D * Vt[-1]
+    twist = S * U[:, -1]
+    return Classification(q.copy(), cases, rank, m, _signed_unit(joint_null), _signed_unit(twist))
+
+
+def _signed_unit(v: np.ndarray) -> np.ndarray:
+    """``v`` normalized, with its largest-magnitude entry positive (a reproducible sign)."""
+    v = v / np.linalg.norm(v)
+    return v if v[np.argmax(np.abs(v))] >= 0 else -v
+
+
+# --- checks -----------------------------------------------------------------------------------------------
+def check_determinant(system: CArmSystem, samples: int, random_setups: int = 0, seed: int = 0) -> float:
+    """Largest |det J (Pinocchio) − eq. 4.7| over random configurations (and random non-isocentric systems)."""
+    from .sampling import random_configurations, random_system
+
+    rng = np.random.default_rng(seed)
+    systems = [system] + [random_system(rng, system) for _ in range(random_setups)]
+    worst = 0.0
+    for k, sys_k in enumerate(systems):
+        n = samples // len(systems) + (k < samples % len(systems))
+        if n:
+            q = random_configurations(rng, sys_k, n)
+            worst = max(worst, float(np.abs(det_jacobian(sys_k, q) - det_closed_form(sys_k, q)).max()))
+    return worst
+
+
+# --- maps ---------------------------------------------------------------------------------------------------
+#: Measures a map can show, computed on a grid.
+MAP_MEASURES = ("det", "manipulability", "inverse-condition", "sigma-min")
+
+
+def joint_index(name: str) -> int:
+    """Index in q of a joint given by name (``wigwag``) or symbol (``theta2``, ``d3``)."""
+    symbols = ("d0", "d1", "theta2", "d3", "theta4", "theta5")
+    key = name.strip().lower()
+    if key in JOINT_NAMES:
+        return JOINT_NAMES.index(key)
+    if key in symbols:
+        return symbols.index(key)
+    raise SingularityError(f"unknown joint {name!r}: use one of {', '.join(JOINT_NAMES)} or {', '.join(symbols)}")
+
+
+def grid_axis(system: CArmSystem, joint: int, n: int) -> np.ndarray:
+    """``n`` grid values of a joint: revolute over a full turn [−π, π], prismatic over its range (m or rad)."""
+    if n < 2:
+        raise SingularityError(f"a grid needs at least 2 points per axis, got {n}")
+    if PRISMATIC[joint]:
+        r = system.joint_ranges[joint]
+        return np.linspace(r.lower, r.upper, n)
+    return np.linspace(-math.pi, math.pi, n)
+
+
+def measure_map(system: CArmSystem, q, pair: tuple[int, int], n: int = 61, measure: str = "det",
+                length: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(x, y, values)`` of a measure over two joints (others at q): values has shape (len(y), len(x)).
+
+    ``"det"`` (|det J|, eq. 4.7) is evaluated in closed form, vectorized; the other measures call
+    Pinocchio per grid point (fine for grids up to ~100×100).
+    """
+    q = _paper_chain(system, q)
+    if measure not in MAP_MEASURES:
+        raise SingularityError(f"unknown measure {measure!r}: use one of {', '.join(MAP_MEASURES)}")
+    i, j = pair
+    if i == j:
+        raise SingularityError(f"a map needs two different joints, got {JOINT_NAMES[i]} twice")
+    x, y = grid_axis(system, i, n), grid_axis(system, j, n)
+    grid = np.broadcast_to(q, (len(y), len(x), 6)).copy()
+    grid[..., i] = x[None, :]
+    grid[..., j] = y[:, None]
+    flat = grid.reshape(-1, 6)
+    if measure == "det":
+        values = np.abs(det_closed_form(system, flat))
+    else:
+        S, D = scaling(system, length)
+        sv = np.linalg.svd(S[:, None] * jacobians(system, flat) * D[None, :], compute_uv=False)
+        values = {"manipulability": lambda s: s.prod(axis=-1), "sigma-min": lambda s: s[:, -1],
+                  "inverse-condition": lambda s: s[:, -1] / s[:, 0]}[measure](sv)
+    return x, y, values.reshape(len(y), len(x))
+
+
+def singular_curves(system: CArmSystem, pair: tuple[int, int]) -> list[tuple[str, int, float]]:
+    """Singular sets that are lines in a map over ``pair``: ``(case, joint index, value)`` for θ4 = ±π/2
+    (case b) and θ2 = −γ3 + kπ (case c), values wrapped to [−π, π]."""
+    out = []
+    for joint, case, values in ((4, "b", (-math.pi / 2, math.pi / 2)),
+                                (2, "c", (-system.setup.gamma3, math.pi - system.setup.gamma3))):
+        if joint in pair:
+            out += [(case, joint, (v + math.pi) % (2 * math.pi) - math.pi) for v in values]
+    return out
+
+
+def plot_maps(system: CArmSystem, q, path, pair: tuple[int, int] = (4, 5), n: int = 61,
+              measure: str = "inverse-condition", length: float | None = None):
+    """Write a PNG with two maps: |det J| over (θ2, θ4) and ``measure`` over ``pair``, singular curves overlaid.
+
+    Axes in degrees (revolute) or mm (prismatic); the joint limits are drawn dashed. Returns the figure.
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(12, 5), layout="constrained")
+    FigureCanvasAgg(fig)
+    panels = (((2, 4), "det"), (tuple(pair), measure))
+    for ax, (pr, meas) in zip(fig.subplots(1, 2), panels):
+        x, y, values = measure_map(system, q, pr, n, meas, length)
+        scale = [1e3 if PRISMATIC[k] else 180.0 / math.pi for k in pr]
+        mesh = ax.pcolormesh(x * scale[0], y * scale[1], values, shading="auto", cmap="viridis")
+        fig.colorbar(mesh, ax=ax, label="|det J| (eq. 4.7)" if meas == "det" else meas)
+        for case, joint, value in singular_curves(system, pr):
+            style = dict(color="red" if case == "b" else "orange", lw=1.5, label=f"case ({case})")
+            k = pr.index(joint)
+            (ax.axvline if k == 0 else ax.axhline)(value * scale[k], **style)
+        r0, r1 = (system.joint_ranges[k] for k in pr)
+        ax.add_patch(_limits_box(r0, r1, scale))
+        ax.set_xlim(x[0] * scale[0], x[-1] * scale[0])
+        ax.set_ylim(y[0] * scale[1], y[-1] * scale[1])
+        ax.set_xlabel(_axis_label(pr[0]))
+        ax.set_ylabel(_axis_label(pr[1]))
+        handles, labels = ax.get_legend_handles_labels()
+        if handles:
+            unique = dict(zip(labels, handles))
+            ax.legend(unique.values(), unique.keys(), loc="upper right", fontsize=8)
+        title = "|det J|" if meas == "det" else meas
+        ax.set_title(f"{title} over ({JOINT_NAMES[pr[0]]}, {JOINT_NAMES[pr[1]]}); sin γ1 = "
+                     f"{math.sin(system.setup.gamma1):+.3f}", fontsize=10)
+    fig.suptitle(f"{system.name}: singularity maps (other joints at q)")
+    fig.savefig(path, dpi=100)
+    return fig
+
+
+def _axis_label(joint: int) -> str:
+    return f"{JOINT_NAMES[joint]} ({'mm' if PRISMATIC[joint] else 'deg'})"
+
+
+def _limits_box(r0, r1, scale):
+    from matplotlib.patches import Rectangle
+
+    return Rectangle((r0.lower * scale[0], r1.lower * scale[1]), (r0.upper - r0.lower) * scale[0],
+                     (r1.upper - r1.lower) * scale[1], fill=False, ls="--", color="white", lw=1.2,
+                     label="joint limits")
