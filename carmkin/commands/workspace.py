@@ -1,0 +1,71 @@
+"""Reproduce the 5- vs 6-DOF workspace study of §4.6.1 (Table 4.5 of the dissertation).
+
+Desired X-ray source poses come from the 6-DOF forward kinematics over the joint grid of §4.6.1 (12285 C-arm
+configurations) at each table translation (default 0..400 mm, step 50); the 5-DOF C-arm IK (table fixed,
+roll free) is solved for each, and for every C-arm joint the command counts the poses out of range (K) and
+the mean, std, max and min of the excess over the closest limit (mm or degrees). It prints Table 4.5 next to
+the dissertation's numbers, the fractions of poses reachable within all ranges by the 5-DOF IK and by the
+6-DOF model (generating configuration or analytic 6-DOF IK), and optionally writes JSON and a plot.
+
+JSON: {"<translation_mm>": {"<joint>": {"K": int, "mean": x, "std": x, "max": x, "min": x}}} with joints
+vertical, wigwag, horizontal, angular, orbital (mm or degrees).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from tqdm import tqdm
+
+from .. import workspace
+from ._common import add_preset_argument, system_from_args
+
+HELP = "5- vs 6-DOF workspace study of §4.6.1 (Table 4.5): joint-range excess of the 5-DOF IK"
+
+
+def register(parser: argparse.ArgumentParser) -> None:
+    add_preset_argument(parser)
+    parser.add_argument("--translations-mm", type=float, nargs="+", default=list(workspace.PAPER_GRID.translations_mm),
+                        metavar="D0", help="table translations d0 in mm (default: 0 50 ... 400)")
+    parser.add_argument("--json", metavar="FILE", help="write the per-joint statistics as JSON")
+    parser.add_argument("--plot", metavar="FILE", help="write a plot of excess and K against translation (PNG, PDF...)")
+    parser.add_argument("--tolerance", type=float, default=1e-9,
+                        help="excess (m or rad) still counted as inside a range (default 1e-9)")
+
+
+def _print_table(result: workspace.StudyResult) -> None:
+    print(f"{'quantity':<18}{'d0 (mm)':>8}{'ours':>11}{'dissertation':>14}")
+    for quantity, d0, ours, paper in workspace.comparison_rows(result):
+        flag = "" if paper in ("—", ours) else "  *"
+        print(f"{quantity:<18}{d0:>8}{ours:>11}{paper:>14}{flag}")
+    print("(* differs from the printed value; see docs/errata/workspace.md)")
+    keys = "".join(f"{workspace.translation_key(r.translation):>8}" for r in result.results)
+    print(f"{'joint':<12}{keys}   (K per d0)")
+    for joint in workspace.JOINTS:
+        print(f"{joint:<12}" + "".join(f"{r.joints[joint].K:>8d}" for r in result.results))
+
+
+def run(args: argparse.Namespace) -> int:
+    system = system_from_args(args)
+    grid = workspace.StudyGrid(translations_mm=tuple(args.translations_mm))
+    n = len(grid.configurations()) * len(grid.translations_mm)
+    with tqdm(total=n, unit="pose", desc="workspace", leave=False, file=sys.stderr) as bar:
+        result = workspace.run_study(system, grid, tolerance=args.tolerance, progress=bar.update)
+    print(f"preset {system.name}: {n} poses ({n // len(grid.translations_mm)} per translation), "
+          f"{'isocentric closed form' if system.carm.is_isocentric else 'general polynomial'} 5-DOF IK")
+    _print_table(result)
+    worst = max(r.max_residual for r in result.results)
+    unsolved = sum(r.unsolved for r in result.results)
+    print(f"reachable within all ranges: 5-DOF IK {result.fraction_5dof:.2%}, "
+          f"6-DOF model {result.fraction_6dof:.2%}")
+    print(f"worst FK residual of the chosen 5-DOF solutions {worst:.2e}; poses without a 5-DOF solution: {unsolved}")
+    if args.json:
+        with open(args.json, "w") as stream:
+            json.dump(result.as_json(), stream, indent=2)
+        print(f"wrote {args.json}")
+    if args.plot:
+        workspace.plot(result, args.plot)
+        print(f"wrote {args.plot}")
+    return 0
