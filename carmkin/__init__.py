@@ -13,6 +13,7 @@ from .errors import (
 from .geometry import JOINT_NAMES, BodyGeometry, CArmGeometry, JointRange, TableGeometry, TableSetup
 from .presets import list_presets, load_preset
 from .system import CArmSystem
+from . import analytic_ik, qp_ik  # noqa: E402  (contract: carmkin.analytic_ik.solve, carmkin.qp_ik.solve)
 
 __all__ = [
     "JOINT_NAMES",
