@@ -103,6 +103,12 @@ class CArmSystem:
         """Pose of the ``detector`` frame in the source frame: on the principal axis at the SDD."""
         return translation(z=self.carm.source_to_detector)
 
+    def _closed_form_base(self) -> np.ndarray:
+        """``K = A0(0) A1(0)`` (4, 4): the C-arm base frame in the table frame at rest, d0 = 0."""
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = self._closed_form.R, self._closed_form.p
+        return T
+
     @cached_property
     def _closed_form(self) -> kinematics.ClosedFormFK:
         return kinematics.ClosedFormFK(self.carm, self.setup)
