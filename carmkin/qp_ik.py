@@ -200,6 +200,11 @@ class QPIK:
 
     Keeps one ``pin.Data`` and the scene's ``GeometryData``; change targets through the tasks'
     ``set_target`` and call :meth:`solve` again. Bounds are the model's position limits.
+
+    ``joint_weights`` (nv,), positive: the regularisation becomes ``lambda · dq^T diag(w) dq``; on a
+    redundant chain (more joints than task rows) each step then tends, as ``lambda -> 0``, to the
+    least-norm step in the weighted norm ``sqrt(dq^T W dq)``, so joints with large weights move less.
+    ``locked``: indices of joints held at their seed value (their step is bounded to 0).
     """
 
     def __init__(
@@ -209,6 +214,8 @@ class QPIK:
         scene: CollisionScene | None = None,
         backend: str | None = None,
         options: QPIKOptions = QPIKOptions(),
+        joint_weights=None,
+        locked: Sequence[int] = (),
     ) -> None:
         if model.nq != model.nv:
             raise QPIKError(f"the QP IK needs a model with nq == nv (vector joints); got nq={model.nq}, nv={model.nv}")
@@ -218,6 +225,12 @@ class QPIK:
         self.data = model.createData()
         self.lower = np.array(model.lowerPositionLimit, dtype=float)
         self.upper = np.array(model.upperPositionLimit, dtype=float)
+        self.weights = np.ones(model.nv) if joint_weights is None else _check_weights(joint_weights, model.nv)
+        self.free = np.ones(model.nv, dtype=bool)
+        for index in locked:
+            if not 0 <= int(index) < model.nv:
+                raise QPIKError(f"locked joint index {index} outside 0..{model.nv - 1}")
+            self.free[int(index)] = False
         extra_rows = sum(2 for t in self.tasks if isinstance(t, AimTask))
         self.backend = make_backend(backend, model.nv, (len(scene) if scene else 0) + extra_rows)
 
@@ -246,7 +259,6 @@ class QPIK:
         iteration = 0
         q_last = q
         nv = model.nv
-        eye = np.eye(nv)
         distances = self._evaluate(q)
         while True:
             if distances is not None and distances.size:  # the seed, then every accepted iterate
@@ -271,7 +283,7 @@ class QPIK:
                 if rows is not None:
                     G_rows.append(rows[0])
                     h_rows.append(rows[1])
-            H += (o.damping + o.error_damping * energy) * eye
+            H += (o.damping + o.error_damping * energy) * np.diag(self.weights)
             if distances is not None:
                 near = self.scene.proximity(distances, o.influence_distance)
                 if near.index.size:
@@ -282,6 +294,7 @@ class QPIK:
             h = np.concatenate(h_rows) if h_rows else None
             lb = np.maximum(self.lower - q, -o.max_step)
             ub = np.minimum(self.upper - q, o.max_step)
+            lb[~self.free] = ub[~self.free] = 0.0  # locked joints stay where the seed put them
             if np.any(lb > ub):
                 reason = "start configuration lies outside the joint limits by more than max_step"
                 break
@@ -296,6 +309,7 @@ class QPIK:
             if dq is None:
                 reason = self._infeasible_reason(iteration, distances)
                 break
+            dq[~self.free] = 0.0  # a solver may return ~1e-17 for a variable bounded to [0, 0]
             iteration += 1
             q, dq, distances = self._accept(q, dq, distances)
             if q is None:
@@ -558,3 +572,129 @@ def _task_satisfied(model: pin.Model, task: FrameTask, q: np.ndarray, options: Q
     data = model.createData()
     pin.framesForwardKinematics(model, data, q)
     return task.errors(data, options.position_tolerance, options.angle_tolerance).satisfied
+
+
+# --- redundant chains: weighted minimal motion (multi-DOF tables, issue 9) ---------------------------------
+#: Weight ratio of :func:`joint_weights` ``prefer``: the non-preferred group's joints cost this much more.
+PREFERENCE_RATIO = 100.0
+
+
+def _check_weights(weights, nv: int) -> np.ndarray:
+    w = np.asarray(weights, dtype=float)
+    if w.shape != (nv,) or not np.all(np.isfinite(w)) or np.any(w <= 0):
+        raise QPIKError(f"joint_weights must be {nv} finite positive numbers, got {weights!r}")
+    return w
+
+
+def is_table_joint(name: str) -> bool:
+    """True for the table's joints (``table_translation`` and the extra ones), False for the C-arm's."""
+    return name.startswith("table_")
+
+
+def joint_weights(system, weights=None, prefer: str | None = None) -> np.ndarray:
+    """Per-joint weights (nq,) of the regularisation ``dq^T diag(w) dq`` (m⁻² or rad⁻²; 1 m ~ 1 rad).
+
+    ``weights``: ``None`` (all 1), a sequence (nq,) in the order of ``system.joint_names``, or a dict by
+    joint name (unnamed joints keep 1). ``prefer``: ``"table"`` multiplies the C-arm joints' weights by
+    :data:`PREFERENCE_RATIO` (the table does the moving), ``"carm"`` the table joints' weights; ``None``
+    leaves them.
+    """
+    names = system.joint_names
+    if weights is None:
+        w = np.ones(len(names))
+    elif isinstance(weights, dict):
+        unknown = set(weights) - set(names)
+        if unknown:
+            raise QPIKError(f"joint_weights names unknown joint(s) {sorted(unknown)}; joints: {', '.join(names)}")
+        w = np.array([float(weights.get(n, 1.0)) for n in names])
+    else:
+        w = np.asarray(weights, dtype=float)
+    w = _check_weights(w, len(names))
+    if prefer is None:
+        return w
+    if prefer not in ("table", "carm"):
+        raise QPIKError(f"prefer must be 'table', 'carm' or None, got {prefer!r}")
+    penalised = np.array([is_table_joint(n) == (prefer == "carm") for n in names])
+    return np.where(penalised, PREFERENCE_RATIO * w, w)
+
+
+def locked_indices(system, free: Sequence[str] | None) -> list[int]:
+    """Indices of the joints not named in ``free`` (``None``: every joint free)."""
+    if free is None:
+        return []
+    unknown = set(free) - set(system.joint_names)
+    if unknown:
+        raise QPIKError(f"free names unknown joint(s) {sorted(unknown)}; joints: {', '.join(system.joint_names)}")
+    return [k for k, n in enumerate(system.joint_names) if n not in free]
+
+
+def solve_redundant(
+    system,
+    target,
+    q_current=None,
+    obstacles: Sequence[Obstacle] = (),
+    options: QPIKOptions = QPIKOptions(),
+    weights=None,
+    prefer: str | None = None,
+    free: Sequence[str] | None = None,
+    extra_seeds: Sequence = (),
+    backend: str | None = None,
+    closed_form_seeds: bool = True,
+    random_seeds: int = 0,
+    rng_seed: int = 0,
+) -> SolveResult:
+    """IK of a system with any number of joints (e.g. the 11 of a motorized table) by the QP alone.
+
+    ``target`` as in :func:`solve`. Among the infinitely many solutions of a redundant chain the QP, seeded
+    at ``q_current`` (default: mid-range of the free joints, the locked ones at 0), moves little in the
+    weighted norm of :func:`joint_weights` (``weights``, ``prefer``). ``free``: names of the joints that may
+    move; the others are held at their value in ``q_current`` (0 by default). When the run from ``q_current``
+    fails, further seeds are tried in order: ``extra_seeds`` (k, nq); with ``closed_form_seeds`` both
+    branches of the single-axis closed form (:func:`carmkin.table_ik.solve_single_axis`, ``table_translation``
+    active, the other table joints held at ``q_current``, when ``table_translation`` is free; for axis and aim
+    targets on the pose of :func:`_closed_form_pose`); then ``random_seeds`` uniform draws over the free joints' ranges (``numpy`` seed ``rng_seed``). Limits and collisions as in :class:`QPIK`; the answer is
+    checked by :func:`carmkin.validity.check` (joints in range, every pair at least the safety margin
+    apart; the table-in-cone condition is reported in ``validity`` but not required).
+    """
+    from . import validity
+
+    model = system.pinocchio()[0]
+    lower, upper = np.array(model.lowerPositionLimit), np.array(model.upperPositionLimit)
+    locked = locked_indices(system, free)
+    if q_current is None:
+        q_current = 0.5 * (lower + upper)
+        q_current[locked] = 0.0
+    q_current = np.asarray(q_current, dtype=float)
+    if q_current.shape != (model.nq,) or not np.all(np.isfinite(q_current)):
+        raise InvalidConfigurationError(f"q_current must be a finite vector of shape ({model.nq},), got {q_current.shape}")
+    scene = CollisionScene.from_system(system, obstacles)
+    qp = QPIK(model, [make_task(model, target)], scene, backend=backend, options=options,
+              joint_weights=joint_weights(system, weights, prefer), locked=locked)
+    seeds = [("q_current", q_current)]
+    for k, s in enumerate(extra_seeds):
+        seeds.append((f"seed {k}", np.array(s, dtype=float)))
+    if closed_form_seeds and 0 not in locked:
+        try:
+            from .table_ik import solve_single_axis
+
+            pose = _closed_form_pose(system, target, q_current)  # roll of a 5-DOF target: least rotation
+            single = solve_single_axis(system, pose, "table_translation", q_current)
+            seeds += [(f"closed-form branch {k}", q) for k, q in enumerate(single.solutions) if np.all(np.isfinite(q))]
+        except CarmkinError:
+            pass
+    rng = np.random.default_rng(rng_seed)
+    seeds += [(f"random {k}", rng.uniform(lower, upper)) for k in range(random_seeds)]
+    attempts, reasons = [], []
+    for name, q0 in seeds:
+        q0 = np.where(qp.free, q0, q_current)
+        q0 = np.where(qp.free, np.clip(q0, lower, upper), q0)
+        run = qp.solve(q0, seed=name)
+        attempts.append(run)
+        if run.success:
+            report = validity.check(system, run.q, margin=options.safety_margin, scene=scene)
+            if report.reachable:
+                return SolveResult(run.q, True, "qp", name, None, report, None, [], attempts)
+            run.success = False
+            run.reason = "converged to an invalid configuration: " + "; ".join(report.reasons)
+        reasons.append(f"QP from {name}: {run.reason}")
+    return SolveResult(np.full(model.nq, np.nan), False, "qp", None, " | ".join(reasons), None, None, [], attempts)

@@ -7,6 +7,11 @@ the mean, std, max and min of the excess over the closest limit (mm or degrees).
 the dissertation's numbers, the fractions of poses reachable within all ranges by the 5-DOF IK and by the
 6-DOF model (generating configuration or analytic 6-DOF IK), and optionally writes JSON and a plot.
 
+With ``--table-dofs none|paper|translations|all|compare`` it runs instead the study generalised to multi-DOF
+tables (:mod:`carmkin.table_workspace`; preset default ``siremobile-iso-c3d-motorized-table``): the fraction
+of ``--poses`` random desired poses reachable with the C-arm alone, + d0, + the three table translations, +
+all table joints; JSON ``{"<model>": {"fraction": x, "reached": int, "poses": int}}``.
+
 JSON: {"<translation_mm>": {"<joint>": {"K": int, "mean": x, "std": x, "max": x, "min": x}}} with joints
 vertical, wigwag, horizontal, angular, orbital (mm or degrees).
 """
@@ -19,8 +24,11 @@ import sys
 
 from tqdm import tqdm
 
-from .. import workspace
-from ._common import add_preset_argument, system_from_args
+from .. import table_workspace, workspace
+from ._common import DEFAULT_PRESET, add_preset_argument, system_from_args
+
+#: Preset used by ``--table-dofs`` when ``--preset`` is left at its default.
+TABLE_PRESET = "siremobile-iso-c3d-motorized-table"
 
 HELP = "5- vs 6-DOF workspace study of §4.6.1 (Table 4.5): joint-range excess of the 5-DOF IK"
 
@@ -33,6 +41,15 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--plot", metavar="FILE", help="write a plot of excess and K against translation (PNG, PDF...)")
     parser.add_argument("--tolerance", type=float, default=1e-9,
                         help="excess (m or rad) still counted as inside a range (default 1e-9)")
+    parser.add_argument("--table-dofs", choices=(*table_workspace.MODELS, "compare"),
+                        help="instead of Table 4.5: generalised study over random poses of the full motorized "
+                        "table + C-arm, reachable with only the C-arm (none), + d0 (paper), + lateral and height "
+                        f"(translations), + tilts and rotation (all), or all four rows (compare); preset "
+                        f"defaults to {TABLE_PRESET}")
+    parser.add_argument("--poses", type=int, default=300, help="--table-dofs: number of desired poses (default 300)")
+    parser.add_argument("--seed", type=int, default=0, help="--table-dofs: random seed of the poses (default 0)")
+    parser.add_argument("--random-seeds", type=int, default=6,
+                        help="--table-dofs: random QP seeds per pose after the deterministic ones (default 6)")
 
 
 def _print_table(result: workspace.StudyResult) -> None:
@@ -47,7 +64,32 @@ def _print_table(result: workspace.StudyResult) -> None:
         print(f"{joint:<12}" + "".join(f"{r.joints[joint].K:>8d}" for r in result.results))
 
 
+def run_table_study(args: argparse.Namespace) -> int:
+    """The generalised study of :mod:`carmkin.table_workspace`."""
+    if args.preset == DEFAULT_PRESET:
+        args.preset = TABLE_PRESET
+    system = system_from_args(args)
+    models = tuple(table_workspace.MODELS) if args.table_dofs == "compare" else (args.table_dofs,)
+    with tqdm(total=args.poses * len(models), unit="solve", desc="workspace", leave=False, file=sys.stderr) as bar:
+        _, results = table_workspace.run_study(system, models, n=args.poses, seed=args.seed,
+                                               random_seeds=args.random_seeds, progress=bar.update)
+    print(f"preset {system.name}: {args.poses} desired poses (position + principal axis, roll free) from "
+          f"random in-range collision-free configurations of all {system.nq} joints, seed {args.seed}")
+    print("\n".join(table_workspace.table_rows(results)))
+    if args.json:
+        with open(args.json, "w") as stream:
+            json.dump({r.model: {"fraction": r.fraction, "reached": int(r.reached.sum()), "poses": len(r.reached)}
+                       for r in results}, stream, indent=2)
+        print(f"wrote {args.json}")
+    if args.plot:
+        table_workspace.plot(results, args.plot)
+        print(f"wrote {args.plot}")
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
+    if getattr(args, "table_dofs", None):
+        return run_table_study(args)
     system = system_from_args(args)
     grid = workspace.StudyGrid(translations_mm=tuple(args.translations_mm))
     n = len(grid.configurations()) * len(grid.translations_mm)
