@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import CarmkinError
+from . import transforms
 from .transforms import check_rigid_transform
 
 
@@ -166,14 +167,7 @@ def rotation_between(a, b) -> np.ndarray:
     na, nb = np.linalg.norm(a), np.linalg.norm(b)
     if na < 1e-15 or nb < 1e-15:
         raise ImagingError("rotation_between needs non-zero vectors")
-    a, b = a / na, b / nb
-    v, c = np.cross(a, b), float(a @ b)
-    if c < -1.0 + 1e-12:
-        axis = np.cross(a, (0.0, 1.0, 0.0)) if abs(a[1]) < 0.9 else np.cross(a, (1.0, 0.0, 0.0))
-        axis /= np.linalg.norm(axis)
-        return 2.0 * np.outer(axis, axis) - np.eye(3)
-    vx = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-    return np.eye(3) + vx + vx @ vx / (1.0 + c)
+    return transforms.rotation_between(a, b)
 
 
 def image_border(columns: int, rows: int, per_edge: int = 16) -> np.ndarray:

@@ -23,7 +23,7 @@ from .errors import CarmkinError, InvalidConfigurationError
 from .geometry import TableSetup
 from .kinematics import check_configuration
 from .system import CArmSystem
-from .transforms import check_rigid_transform, inverse
+from .transforms import check_rigid_transform, inverse, rotation_between
 
 #: Joints that can play the paper's d0: the table's translations.
 TRANSLATIONS = ("table_translation", "table_lateral", "table_height")
@@ -59,17 +59,6 @@ class SingleAxisResult:
         return bool(self.ik.valid)
 
 
-def _rotation_taking_z_to(w: np.ndarray) -> np.ndarray:
-    """A rotation R with R e_z = w (Rodrigues' minimal rotation; a half turn about X when w = -e_z)."""
-    z = np.array([0.0, 0.0, 1.0])
-    axis = np.cross(z, w)
-    s, c = np.linalg.norm(axis), float(z @ w)
-    if s < 1e-15:
-        return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
-    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]]) / s
-    return np.eye(3) + s * K + (1 - c) * K @ K
-
-
 def equivalent_chain(system: CArmSystem, active: str, q_held) -> tuple[CArmSystem, np.ndarray, int]:
     """The paper's 6-DOF chain equivalent to ``system`` with only ``active`` moving among the table joints.
 
@@ -103,7 +92,7 @@ def equivalent_chain(system: CArmSystem, active: str, q_held) -> tuple[CArmSyste
     C = system._table_motion(values)
     C[2, 3] += d0
     T_table_cart = C @ system._closed_form_base()
-    R = _rotation_taking_z_to(w)
+    R = rotation_between((0.0, 0.0, 1.0), w)
     T_equivalent_table = np.eye(4)
     T_equivalent_table[:3, :3] = R.T
     T_equivalent_cart = T_equivalent_table @ T_table_cart

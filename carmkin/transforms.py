@@ -87,3 +87,25 @@ def check_rigid_transform(T, name: str = "pose", batch: bool = False) -> np.ndar
     if np.abs(det - 1.0).max(initial=0.0) > RIGID_TOLERANCE:
         raise InvalidPoseError(f"{name}: rotation has det = {det.min():.6g}, expected +1 (a reflection?)")
     return T
+
+
+def rotation_between(a, b) -> np.ndarray:
+    """The minimal rotation R (3, 3) taking the direction of ``a`` to that of ``b`` (non-zero 3-vectors).
+
+    Rodrigues' formula with the unit axis ``a × b`` and the angle ``atan2(|a × b|, a·b)``, which stays
+    orthonormal to machine precision up to antiparallel vectors; for those, the half turn about the axis
+    perpendicular to both ``a`` and Y (``a × e_y``; ``a × e_x`` when ``a`` is nearly along Y).
+    """
+    a = np.asarray(a, dtype=float) / np.linalg.norm(a)
+    b = np.asarray(b, dtype=float) / np.linalg.norm(b)
+    v, c = np.cross(a, b), float(a @ b)
+    s = float(np.linalg.norm(v))
+    if s < 1e-15:
+        if c > 0:
+            return np.eye(3)
+        axis = np.cross(a, (0.0, 1.0, 0.0)) if abs(a[1]) < 0.9 else np.cross(a, (1.0, 0.0, 0.0))
+        axis /= np.linalg.norm(axis)
+        return 2.0 * np.outer(axis, axis) - np.eye(3)
+    k = v / s
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + s * K + (1.0 - c) * (K @ K)
