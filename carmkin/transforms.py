@@ -93,7 +93,8 @@ def rotation_between(a, b) -> np.ndarray:
     """The minimal rotation R (3, 3) taking the direction of ``a`` to that of ``b`` (non-zero 3-vectors).
 
     Rodrigues' formula with the unit axis ``a × b`` and the angle ``atan2(|a × b|, a·b)``, which stays
-    orthonormal to machine precision up to antiparallel vectors; for those, the half turn about the axis
+    orthonormal to machine precision up to antiparallel vectors (where the axis, and so how exactly a maps
+    onto b, is only known to ~1e-16 / |a × b|); for exactly antiparallel ones, the half turn about the axis
     perpendicular to both ``a`` and Y (``a × e_y``; ``a × e_x`` when ``a`` is nearly along Y).
     """
     a = np.asarray(a, dtype=float) / np.linalg.norm(a)
