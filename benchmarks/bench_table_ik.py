@@ -21,21 +21,10 @@ import time
 import numpy as np
 
 import carmkin
-from carmkin.collision import CollisionScene
 from carmkin.qp_ik import QPIKOptions, solve_redundant
+from carmkin.table_workspace import desired_configurations
 
 PRESET = "siremobile-iso-c3d-motorized-table"
-
-
-def make_targets(system, n: int, margin: float, rng) -> np.ndarray:
-    """(n, nq) random in-range configurations keeping every pair at least ``margin`` apart."""
-    scene = CollisionScene.from_system(system)
-    out = []
-    while len(out) < n:
-        q = rng.uniform(system.lower, system.upper)
-        if scene.distances(q=q).min() >= margin:
-            out.append(q)
-    return np.array(out)
 
 
 def run(system, targets, **kwargs) -> tuple[float, float, int]:
@@ -59,7 +48,7 @@ def main() -> None:
     n = 200 if args.quick else 1000
     system = carmkin.load_preset(PRESET)
     options = QPIKOptions()
-    targets = make_targets(system, n, options.safety_margin, np.random.default_rng(args.seed))
+    targets = desired_configurations(system, n, seed=args.seed, margin=options.safety_margin)
     print(f"{PRESET}: {system.nq} joints, {n} random reachable targets (seed {args.seed})")
     base_rate, base_time, _ = run(system, targets, closed_form_seeds=False)
     rate, per_target, worst = run(system, targets, random_seeds=4, rng_seed=args.seed)
