@@ -13,7 +13,6 @@ from .errors import (
 from .geometry import JOINT_NAMES, BodyGeometry, CArmGeometry, JointRange, TableGeometry, TableSetup
 from .presets import list_presets, load_preset
 from .system import CArmSystem
-from . import analytic_ik, qp_ik  # noqa: E402  (contract: carmkin.analytic_ik.solve, carmkin.qp_ik.solve)
 
 __all__ = [
     "JOINT_NAMES",
@@ -31,3 +30,17 @@ __all__ = [
     "list_presets",
     "load_preset",
 ]
+
+
+#: Submodules loaded on first attribute access (``carmkin.analytic_ik.solve(...)`` after ``import carmkin``)
+#: so that importing carmkin does not pull in the QP solvers, coal or meshcat.
+_LAZY_SUBMODULES = {"analytic_ik", "numerical_ik", "qp_ik", "singularity", "five_dof", "workspace",
+                    "table_ik", "table_workspace", "imaging", "panorama", "validity", "collision", "viz"}
+
+
+def __getattr__(name: str):
+    if name in _LAZY_SUBMODULES:
+        import importlib
+
+        return importlib.import_module(f"{__name__}.{name}")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -202,7 +202,7 @@ class ClosedFormIK:
                 f"({', '.join(j.name for j in system.table.joints)}): use carmkin.qp_ik"
             )
         self.system = system
-        fk = system._closed_form
+        fk = system.closed_form
         self.R = np.array(fk.R, dtype=float)
         self.p = np.array(fk.p, dtype=float)
         self.K = tuple(tuple(float(v) for v in row) for row in self.R)
@@ -223,23 +223,26 @@ class ClosedFormIK:
                 k_min, k_max = math.ceil((lo - math.pi) / _TWO_PI), math.floor((hi + math.pi) / _TWO_PI)
                 self.wrap[j] = tuple(range(k_min, k_max + 1))
 
+    def frame2_terms(self, x0, y0, z0, px, x1, y1, z1, py, x2, y2, z2, pz):
+        """The pose entries seen from frame 2, for floats (scalar path) or arrays (batch path).
+
+        Returns ``(Wx, Wy, s4, Yz, Zz, ux, uy, uz)``: X_xray's components (Wx, Wy, s4 = sin θ4), the Z
+        components of Y_xray and Z_xray, and ``u = R_K^T (p + L Z_xray + a2 Y_xray − p_K)``.
+        """
+        (k00, k01, k02), (k10, k11, k12), (k20, k21, k22) = self.K
+        L, a2 = self.L, self.a2
+        wx = px + L * z0 + a2 * y0 - self.pK[0]
+        wy = py + L * z1 + a2 * y1 - self.pK[1]
+        wz = pz + L * z2 + a2 * y2 - self.pK[2]
+        return (k00 * x0 + k10 * x1 + k20 * x2, k01 * x0 + k11 * x1 + k21 * x2, k02 * x0 + k12 * x1 + k22 * x2,
+                k02 * y0 + k12 * y1 + k22 * y2, k02 * z0 + k12 * z1 + k22 * z2,
+                k00 * wx + k10 * wy + k20 * wz, k01 * wx + k11 * wy + k21 * wz, k02 * wx + k12 * wy + k22 * wz)
+
     # --- scalar path --------------------------------------------------------------------------------
     def angles_and_translations(self, T):
         """Both branches from a 4x4 nested sequence (no checks): (q0, q1, det_j, det2) as lists/floats."""
         (x0, y0, z0, px), (x1, y1, z1, py), (x2, y2, z2, pz) = T[0], T[1], T[2]
-        (k00, k01, k02), (k10, k11, k12), (k20, k21, k22) = self.K
-        Wx = k00 * x0 + k10 * x1 + k20 * x2
-        Wy = k01 * x0 + k11 * x1 + k21 * x2
-        s4 = k02 * x0 + k12 * x1 + k22 * x2
-        Yz = k02 * y0 + k12 * y1 + k22 * y2
-        Zz = k02 * z0 + k12 * z1 + k22 * z2
-        L, a2 = self.L, self.a2
-        wx = px - self.pK[0] + L * z0 + a2 * y0
-        wy = py - self.pK[1] + L * z1 + a2 * y1
-        wz = pz - self.pK[2] + L * z2 + a2 * y2
-        ux = k00 * wx + k10 * wy + k20 * wz
-        uy = k01 * wx + k11 * wy + k21 * wz
-        uz = k02 * wx + k12 * wy + k22 * wz
+        Wx, Wy, s4, Yz, Zz, ux, uy, uz = self.frame2_terms(x0, y0, z0, px, x1, y1, z1, py, x2, y2, z2, pz)
         hyp = math.sqrt(Wx * Wx + Wy * Wy)  # as in the batch path (np.hypot is slow)
         t2 = math.atan2(-Wy, -Wx)
         if hyp > 0.0:
@@ -344,7 +347,7 @@ class ClosedFormIK:
         """max(position error m, rotation angle rad) of the closed-form FK of ``q`` against ``T``."""
         from .numerical_ik import pose_error
 
-        return max(pose_error(self.system._closed_form.pose(q), np.asarray(T, dtype=float)))
+        return max(pose_error(self.system.closed_form.pose(q), np.asarray(T, dtype=float)))
 
     # --- singular path -------------------------------------------------------------------------------
     def seeds(self, rows, q_closed: list, q_ref, branch: int, cases: tuple) -> list[np.ndarray]:
@@ -428,20 +431,7 @@ class ClosedFormIK:
         n = T.shape[0]
         if rows is None:
             rows = np.ascontiguousarray(T.reshape(n, 16).T)
-        x0, y0, z0, px, x1, y1, z1, py, x2, y2, z2, pz = rows[:12]
-        (k00, k01, k02), (k10, k11, k12), (k20, k21, k22) = self.K
-        Wx = k00 * x0 + k10 * x1 + k20 * x2
-        Wy = k01 * x0 + k11 * x1 + k21 * x2
-        s4 = k02 * x0 + k12 * x1 + k22 * x2
-        Yz = k02 * y0 + k12 * y1 + k22 * y2
-        Zz = k02 * z0 + k12 * z1 + k22 * z2
-        L, a2 = self.L, self.a2
-        wx = px + L * z0 + a2 * y0 - self.pK[0]
-        wy = py + L * z1 + a2 * y1 - self.pK[1]
-        wz = pz + L * z2 + a2 * y2 - self.pK[2]
-        ux = k00 * wx + k10 * wy + k20 * wz
-        uy = k01 * wx + k11 * wy + k21 * wz
-        uz = k02 * wx + k12 * wy + k22 * wz
+        Wx, Wy, s4, Yz, Zz, ux, uy, uz = self.frame2_terms(*rows[:12])
         hyp = np.sqrt(Wx * Wx + Wy * Wy)
         t2 = np.arctan2(-Wy, -Wx)
         with np.errstate(divide="ignore", invalid="ignore"):

@@ -58,8 +58,11 @@ class CArmSystem:
         k = len(self.table.joints)
         return np.concatenate((q[..., :1], q[..., 1 + k:]), axis=-1), q[..., 1:1 + k]
 
-    def _table_motion(self, q_table: np.ndarray) -> np.ndarray:
-        """``e^{-ξk qk} ··· e^{-ξ1 q1}`` for extra table joint values (k,) or (N, k): (4, 4) or (N, 4, 4)."""
+    def table_motion(self, q_table: np.ndarray) -> np.ndarray:
+        """``e^{-ξk qk} ··· e^{-ξ1 q1}`` for extra table joint values (k,) or (N, k): (4, 4) or (N, 4, 4).
+
+        The floor-fixed frame ``table_reference`` seen from the table top (see :mod:`carmkin.table_joints`).
+        """
         from .table_joints import inverse_chain
 
         if q_table.ndim == 1:
@@ -72,7 +75,7 @@ class CArmSystem:
         d0 = q6[..., 0].copy()
         q6 = q6.copy()
         q6[..., 0] = 0.0
-        E = self._table_motion(q_table)
+        E = self.table_motion(q_table)
         E[..., 2, 3] += d0
         P = poses_of_q6(q6)
         return E[..., None, :, :] @ P if P.ndim == E.ndim + 1 else E @ P
@@ -103,14 +106,16 @@ class CArmSystem:
         """Pose of the ``detector`` frame in the source frame: on the principal axis at the SDD."""
         return translation(z=self.carm.source_to_detector)
 
-    def _closed_form_base(self) -> np.ndarray:
-        """``K = A0(0) A1(0)`` (4, 4): the C-arm base frame in the table frame at rest, d0 = 0."""
+    @cached_property
+    def carm_base_pose(self) -> np.ndarray:
+        """``K = A0(0) A1(0)`` (4, 4): the C-arm base frame (``carm_cart``) in the table frame at rest, d0 = 0."""
         T = np.eye(4)
-        T[:3, :3], T[:3, 3] = self._closed_form.R, self._closed_form.p
+        T[:3, :3], T[:3, 3] = self.closed_form.R, self.closed_form.p
         return T
 
     @cached_property
-    def _closed_form(self) -> kinematics.ClosedFormFK:
+    def closed_form(self) -> kinematics.ClosedFormFK:
+        """The expanded closed-form FK of the 6-DOF chain (constants precomputed once per system)."""
         return kinematics.ClosedFormFK(self.carm, self.setup)
 
     def fk(self, q) -> np.ndarray:
@@ -120,7 +125,7 @@ class CArmSystem:
         return self._fk6(kinematics.check_configuration(q))
 
     def _fk6(self, q6: np.ndarray) -> np.ndarray:
-        return self._closed_form.pose(q6) if q6.ndim == 1 else self._closed_form.poses(q6)
+        return self.closed_form.pose(q6) if q6.ndim == 1 else self.closed_form.poses(q6)
 
     def dh_frames(self, q) -> np.ndarray:
         """Poses of DH frames 1..6 in the table frame: (6, 4, 4) for q (nq,), (N, 6, 4, 4) for (N, nq)."""

@@ -89,9 +89,9 @@ def equivalent_chain(system: CArmSystem, active: str, q_held) -> tuple[CArmSyste
         w = np.array([0.0, 0.0, 1.0])
     else:  # e^{-ξ q} = Trans(-q u); moved to the left of E_before it becomes Trans(-q R_before u)
         w = -before[:3, :3] @ np.asarray(joints[index - 1].axis)
-    C = system._table_motion(values)
+    C = system.table_motion(values)
     C[2, 3] += d0
-    T_table_cart = C @ system._closed_form_base()
+    T_table_cart = C @ system.carm_base_pose
     R = rotation_between((0.0, 0.0, 1.0), w)
     T_equivalent_table = np.eye(4)
     T_equivalent_table[:3, :3] = R.T
