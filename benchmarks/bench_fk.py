@@ -17,7 +17,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from _timing import median_time, row  # noqa: E402
 
 import carmkin  # noqa: E402
-from carmkin.sampling import random_configurations  # noqa: E402
+from carmkin.model.sampling import random_configurations  # noqa: E402
 
 
 def main() -> None:

@@ -2,7 +2,7 @@
 to Pinocchio damped least squares on the same targets, and `solve_batch` throughput, in the same run.
 
 Targets: FK of random configurations inside the joint ranges of the preset. The DLS baseline
-(`carmkin.numerical_ik`, Pinocchio frame Jacobian, tolerance 1e-9, at most 100 iterations) starts from the
+(`carmkin.analytic.dls`, Pinocchio frame Jacobian, tolerance 1e-9, at most 100 iterations) starts from the
 middle of the joint ranges; its success rate is printed. Run: python benchmarks/bench_ik.py [--quick]
 """
 
@@ -20,8 +20,9 @@ sys.path.insert(0, str(Path(__file__).parent))
 from _timing import row  # noqa: E402
 
 import carmkin  # noqa: E402
-from carmkin import analytic_ik, numerical_ik  # noqa: E402
-from carmkin.sampling import random_configurations, random_system  # noqa: E402
+from carmkin import analytic_ik  # noqa: E402
+from carmkin.analytic import dls as numerical_ik  # noqa: E402
+from carmkin.model.sampling import random_configurations, random_system  # noqa: E402
 
 
 def per_target_medians(call, targets, inner: int) -> float:

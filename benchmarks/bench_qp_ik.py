@@ -23,9 +23,9 @@ import pinocchio as pin
 import qpsolvers
 
 import carmkin
-from carmkin.collision import CollisionScene
+from carmkin.qp.tasks import PoseTask
 from carmkin.qp_ik import BACKENDS, QPIK, QPIKOptions, default_backend
-from carmkin.tasks import PoseTask
+from carmkin.robot.collision import CollisionScene
 
 TOL = 1e-6
 

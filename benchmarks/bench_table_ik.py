@@ -6,7 +6,7 @@ safety margin (10 mm) apart. Solver: :func:`carmkin.qp_ik.solve_redundant` seede
 configuration, then (only when that run fails) at both branches of the single-axis closed form
 (``table_translation`` active, other table joints at mid-range) and at 4 seeded uniform random
 configurations. Success: pose error <= 1e-6 m and 1e-6 rad, joints in range, every pair >= the margin
-(checked again by :func:`carmkin.validity.check`). Baseline in the same run: the QP from the mid-range seed
+(checked again by :func:`carmkin.robot.validity.check`). Baseline in the same run: the QP from the mid-range seed
 alone.
 
     python benchmarks/bench_table_ik.py            # 1000 targets
@@ -22,7 +22,7 @@ import numpy as np
 
 import carmkin
 from carmkin.qp_ik import QPIKOptions, solve_redundant
-from carmkin.table_workspace import desired_configurations
+from carmkin.studies.table_workspace import desired_configurations
 
 PRESET = "siremobile-iso-c3d-motorized-table"
 

@@ -18,7 +18,8 @@ sys.path.insert(0, str(Path(__file__).parent))
 from _timing import row  # noqa: E402
 
 import carmkin  # noqa: E402
-from carmkin import five_dof, workspace  # noqa: E402
+from carmkin.analytic import five_dof  # noqa: E402
+from carmkin.studies import workspace  # noqa: E402
 
 
 def best_of(call, repeat: int) -> float:

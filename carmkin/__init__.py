@@ -3,16 +3,23 @@
 Units are SI (m, rad) throughout the library; presets and the CLI speak mm and degrees.
 """
 
-from .errors import (
+from carmkin.errors import (
     CarmkinError,
     InvalidConfigurationError,
     InvalidParameterError,
     InvalidPoseError,
     UnknownPresetError,
 )
-from .geometry import JOINT_NAMES, BodyGeometry, CArmGeometry, JointRange, TableGeometry, TableSetup
-from .presets import list_presets, load_preset
-from .system import CArmSystem
+from carmkin.model.params import (
+    JOINT_NAMES,
+    BodyGeometry,
+    CArmGeometry,
+    JointRange,
+    TableGeometry,
+    TableSetup,
+)
+from carmkin.model.system import CArmSystem
+from carmkin.presets import list_presets, load_preset
 
 __all__ = [
     "JOINT_NAMES",
@@ -34,8 +41,8 @@ __all__ = [
 
 #: Submodules loaded on first attribute access (``carmkin.analytic_ik.solve(...)`` after ``import carmkin``)
 #: so that importing carmkin does not pull in the QP solvers, coal or meshcat.
-_LAZY_SUBMODULES = {"analytic_ik", "numerical_ik", "qp_ik", "singularity", "five_dof", "workspace",
-                    "table_ik", "table_workspace", "imaging", "panorama", "validity", "collision", "viz"}
+_LAZY_SUBMODULES = {"model", "robot", "analytic_ik", "analytic", "qp_ik", "qp", "singularity", "studies",
+                    "imaging", "plots", "transforms", "viz"}
 
 
 def __getattr__(name: str):

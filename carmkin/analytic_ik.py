@@ -2,7 +2,7 @@
 
 Given ``T`` = pose of ``xray_source`` in the table frame 0 (what :meth:`CArmSystem.fk` returns; m, rad),
 :func:`solve` returns both solutions of the chain and picks one; :func:`solve_batch` does the same for N
-poses with numpy. Derivation (from the DH rows of :mod:`carmkin.kinematics`, not from the printed Table 4.2,
+poses with numpy. Derivation (from the DH rows of :mod:`carmkin.model.kinematics`, not from the printed Table 4.2,
 see ``docs/errata/analytic_ik.md``): the FK is ``0T_xray = Tz(d0) · K · Tz(d1) · 2T_xray(θ2, d3, θ4, θ5)``
 with the constant ``K = A0(0) A1(0)``. With ``W = R_Kᵀ R`` (the source orientation in frame 2's parent
 axes), the X axis of the source is ``W e_x = (−c2 c4, −s2 c4, s4)``, the Z components of its Y and Z axes
@@ -19,7 +19,7 @@ any table setup.
 
 Singularities (§4.3.2): ``det J = sin(θ2+γ3) · sin γ1 · cos θ4`` (eq. 4.7, checked against Pinocchio's
 Jacobian in the tests; the same value for both branches). When ``|det J| < SINGULAR_TOLERANCE`` the pose is
-solved numerically (damped least squares on Pinocchio's Jacobian, :mod:`carmkin.numerical_ik`) from a seed
+solved numerically (damped least squares on Pinocchio's Jacobian, :mod:`carmkin.analytic.dls`) from a seed
 built from the closed form and ``q_current``, and flagged ``numerical``.
 
 Selection (§4.4.2, in order): within the joint ranges; then the smaller sum of rotational joint movements
@@ -37,9 +37,9 @@ from functools import cached_property
 
 import numpy as np
 
-from .errors import CarmkinError, InvalidConfigurationError
-from .geometry import JOINT_NAMES, PRISMATIC
-from .transforms import RIGID_TOLERANCE, check_rigid_transform
+from carmkin.errors import CarmkinError, InvalidConfigurationError
+from carmkin.model.params import JOINT_NAMES, PRISMATIC
+from carmkin.transforms import RIGID_TOLERANCE, check_rigid_transform
 
 #: Below this |det J| (eq. 4.7, dimensionless) a pose is treated as singular and solved numerically. The
 #: closed form loses about eps/|factor| of accuracy; at 1e-5 that stays ~1e-10 m / rad for poses within a
@@ -345,7 +345,7 @@ class ClosedFormIK:
 
     def residual(self, q, T) -> float:
         """max(position error m, rotation angle rad) of the closed-form FK of ``q`` against ``T``."""
-        from .numerical_ik import pose_error
+        from carmkin.analytic.dls import pose_error
 
         return max(pose_error(self.system.closed_form.pose(q), np.asarray(T, dtype=float)))
 
@@ -391,7 +391,7 @@ class ClosedFormIK:
         return sorted(out, key=key)
 
     def solve_singular(self, T, rows, q_ref, q0, q1, det_j) -> IKResult:
-        from . import numerical_ik
+        from carmkin.analytic import dls as numerical_ik
 
         c4 = math.cos(q0[4])
         f_c = math.sin(q0[2] + self.system.setup.gamma3)

@@ -11,8 +11,9 @@ import importlib
 import pkgutil
 import sys
 
+from carmkin.errors import CarmkinError
+
 from . import commands
-from .errors import CarmkinError
 
 #: Order in which the subcommands are listed by ``--help``; modules not named here come last.
 ORDER = ("verify", "ik", "urdf", "workspace", "singularity", "panorama", "view")

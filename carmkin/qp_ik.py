@@ -2,7 +2,7 @@
 
 Each iteration solves, for the step ``dq`` (nv,) of any Pinocchio model with ``nq == nv``,
 
-    minimise    sum_i w_i |r_i + J_i dq|^2 + lambda |dq|^2          (tasks, :mod:`carmkin.tasks`)
+    minimise    sum_i w_i |r_i + J_i dq|^2 + lambda |dq|^2          (tasks, :mod:`carmkin.qp.tasks`)
     subject to  lower - q <= dq <= upper - q,  |dq|_inf <= max_step     (joint limits, trust region)
                 -grad d_k · dq <= gain (d_k - margin)   for pairs k with d_k < influence distance
 
@@ -10,7 +10,7 @@ Each iteration solves, for the step ``dq`` (nv,) of any Pinocchio model with ``n
 solution, so convergence is quadratic). The collision rows are the discrete velocity damper of Faverjon &
 Tournassoud: a step may close at most the fraction ``gain`` of the gap to the safety margin; a pair already
 inside the margin must leave it in one (linearised) step, ``-grad d_k · dq <= d_k - margin``. ``grad d``
-comes from coal witness points and normals (:meth:`carmkin.collision.CollisionScene.distance_jacobian`);
+comes from coal witness points and normals (:meth:`carmkin.robot.collision.CollisionScene.distance_jacobian`);
 pairs farther than ``influence_distance`` are skipped (broad phase). Every step is shortened (halved, up to
 12 times) until no pair ends closer than the smaller of the margin and its current distance, which covers
 the linearisation error of the rows and the pairs skipped by the broad phase. Iterations stop when every
@@ -31,10 +31,10 @@ import pinocchio as pin
 import qpsolvers
 import scipy.sparse as sp
 
-from .collision import CollisionScene, Obstacle
-from .errors import CarmkinError, InvalidConfigurationError
-from .tasks import AimTask, AxisTask, FrameTask, PoseTask
-from .transforms import check_rigid_transform
+from carmkin.errors import CarmkinError, InvalidConfigurationError
+from carmkin.qp.tasks import AimTask, AxisTask, FrameTask, PoseTask
+from carmkin.robot.collision import CollisionScene, Obstacle
+from carmkin.transforms import check_rigid_transform
 
 #: Backends in order of preference, fastest first as measured by ``benchmarks/bench_qp_ik.py`` (all reliable
 #: there); ``None`` as backend means the first one installed. osqp is a core dependency, the others come
@@ -455,7 +455,7 @@ class SolveResult:
     range and collision-free (never a colliding one), or NaN when there is none; ``success``; ``path``:
     ``"closed_form"`` or ``"qp"`` (the path of ``q``); ``seed``: the closed-form branch or ``"q_current"``
     the QP started from; ``reason``: why it failed (``None`` on success); ``validity``: the
-    :class:`~carmkin.validity.ValidityReport` of ``q`` (``None`` for NaN); ``closed_form``: the analytic
+    :class:`~carmkin.robot.validity.ValidityReport` of ``q`` (``None`` for NaN); ``closed_form``: the analytic
     result (or ``None``);
     ``branch_reports``: validity of each closed-form branch; ``attempts``: the QP runs.
     """
@@ -491,7 +491,7 @@ def solve(
     is valid, the QP starts from each branch (projected onto the joint box) and from ``q_current``, and
     the first converged, collision-free run is returned with ``path="qp"``.
     """
-    from . import validity
+    from carmkin.robot import validity
 
     model = system.pinocchio()[0]
     task = make_task(model, target)
@@ -650,13 +650,13 @@ def solve_redundant(
     weighted norm of :func:`joint_weights` (``weights``, ``prefer``). ``free``: names of the joints that may
     move; the others are held at their value in ``q_current`` (0 by default). When the run from ``q_current``
     fails, further seeds are tried in order: ``extra_seeds`` (k, nq); with ``closed_form_seeds`` both
-    branches of the single-axis closed form (:func:`carmkin.table_ik.solve_single_axis`, ``table_translation``
+    branches of the single-axis closed form (:func:`carmkin.analytic.single_axis.solve_single_axis`, ``table_translation``
     active, the other table joints held at ``q_current``, when ``table_translation`` is free; for axis and aim
     targets on the pose of :func:`_closed_form_pose`); then ``random_seeds`` uniform draws over the free joints' ranges (``numpy`` seed ``rng_seed``). Limits and collisions as in :class:`QPIK`; the answer is
-    checked by :func:`carmkin.validity.check` (joints in range, every pair at least the safety margin
+    checked by :func:`carmkin.robot.validity.check` (joints in range, every pair at least the safety margin
     apart; the table-in-cone condition is reported in ``validity`` but not required).
     """
-    from . import validity
+    from carmkin.robot import validity
 
     model = system.pinocchio()[0]
     lower, upper = np.array(model.lowerPositionLimit), np.array(model.upperPositionLimit)
@@ -675,7 +675,7 @@ def solve_redundant(
         seeds.append((f"seed {k}", np.array(s, dtype=float)))
     if closed_form_seeds and 0 not in locked:
         try:
-            from .table_ik import solve_single_axis
+            from carmkin.analytic.single_axis import solve_single_axis
 
             pose = _closed_form_pose(system, target, q_current)  # roll of a 5-DOF target: least rotation
             single = solve_single_axis(system, pose, "table_translation", q_current)

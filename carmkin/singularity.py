@@ -43,10 +43,10 @@ from typing import NamedTuple
 import numpy as np
 import pinocchio as pin
 
-from .errors import CarmkinError
-from .geometry import JOINT_NAMES, PRISMATIC
-from .kinematics import check_configuration
-from .system import CArmSystem
+from carmkin.errors import CarmkinError
+from carmkin.model.kinematics import check_configuration
+from carmkin.model.params import JOINT_NAMES, PRISMATIC
+from carmkin.model.system import CArmSystem
 
 #: Frame whose Jacobian is analysed, and the Pinocchio reference frame (twist at its origin, table axes).
 FRAME = "xray_source"
@@ -339,7 +339,7 @@ def _signed_unit(v: np.ndarray) -> np.ndarray:
 # --- checks -----------------------------------------------------------------------------------------------
 def check_determinant(system: CArmSystem, samples: int, random_setups: int = 0, seed: int = 0) -> float:
     """Largest |det J (Pinocchio) − eq. 4.7| over random configurations (and random non-isocentric systems)."""
-    from .sampling import random_configurations, random_system
+    from carmkin.model.sampling import random_configurations, random_system
 
     rng = np.random.default_rng(seed)
     systems = [system] + [random_system(rng, system) for _ in range(random_setups)]

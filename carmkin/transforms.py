@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import InvalidPoseError
+from carmkin.errors import InvalidPoseError
 
 #: Tolerance of :func:`check_rigid_transform` on ``||R^T R - I||`` and ``|det R - 1|``.
 RIGID_TOLERANCE = 1e-9

@@ -10,7 +10,7 @@ from hypothesis import assume
 from hypothesis import strategies as st
 
 import carmkin
-from carmkin.geometry import PRISMATIC
+from carmkin.model.params import PRISMATIC
 
 PRESET = carmkin.load_preset("siremobile-iso-c3d")
 

@@ -1,1 +1,1 @@
-"""Package data: ``carm_table.urdf.xacro``, the parametric description of the C-arm + table (see carmkin.description)."""
+"""Package data: ``carm_table.urdf.xacro``, the parametric description of the C-arm + table (see carmkin.robot.urdf)."""

@@ -3,7 +3,7 @@
 Pair selection (kept simple on purpose): every collision geometry of a C-arm link (every link except
 ``table`` and ``floor``) against the table top (link ``table``) and against the ``floor``, except the cart
 against the floor it stands on. C-arm parts are not checked against each other. This module is
-for display only; planning code should use :mod:`carmkin.collision`.
+for display only; planning code should use :mod:`carmkin.robot.collision`.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import numpy as np
 import pinocchio as pin
 
 from carmkin.errors import InvalidConfigurationError
-from carmkin.system import CArmSystem
+from carmkin.model.system import CArmSystem
 
 #: Links the C-arm is checked against.
 OBSTACLE_LINKS = ("table", "floor")

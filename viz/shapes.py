@@ -8,7 +8,7 @@ from __future__ import annotations
 import meshcat.geometry as mg
 import numpy as np
 
-from carmkin.geometry import CArmGeometry
+from carmkin.model.params import CArmGeometry
 
 #: RGB of the xacro materials (``urdf/carm_table.urdf.xacro``), 0..1.
 MATERIALS = {

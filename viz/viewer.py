@@ -24,7 +24,7 @@ from meshcat.animation import Animation
 from pinocchio.visualize import MeshcatVisualizer
 
 from carmkin.errors import InvalidConfigurationError
-from carmkin.system import CArmSystem
+from carmkin.model.system import CArmSystem
 from carmkin.transforms import check_rigid_transform
 
 from . import shapes

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import argparse
 
-from ..presets import list_presets, load_preset
-from ..system import CArmSystem
+from carmkin.model.system import CArmSystem
+from carmkin.presets import list_presets, load_preset
 
 DEFAULT_PRESET = "siremobile-iso-c3d"
 

@@ -19,9 +19,10 @@ import math
 
 import numpy as np
 
-from ..analytic_ik import solve
-from ..errors import InvalidConfigurationError, InvalidPoseError
-from ..geometry import JOINT_NAMES, PRISMATIC
+from carmkin.analytic_ik import solve
+from carmkin.errors import InvalidConfigurationError, InvalidPoseError
+from carmkin.model.params import JOINT_NAMES, PRISMATIC
+
 from ._common import add_preset_argument, system_from_args
 
 HELP = "closed-form IK of an X-ray source pose (mm, degrees): both solutions and the chosen one"

@@ -20,8 +20,9 @@ import math
 
 import numpy as np
 
-from .. import panorama as pano
-from .. import phantom as ph
+from carmkin.imaging import panorama as pano
+from carmkin.imaging import phantom as ph
+
 from ._common import add_preset_argument, system_from_args
 
 HELP = "plan parallax-free panoramas: one shot, a sequence, the validity map, the parallax check"

@@ -17,8 +17,9 @@ import math
 
 import numpy as np
 
-from ..geometry import JOINT_NAMES, PRISMATIC
-from .. import singularity as sing
+from carmkin import singularity as sing
+from carmkin.model.params import JOINT_NAMES, PRISMATIC
+
 from ._common import add_preset_argument, system_from_args
 
 HELP = "singular cases, |det J| / manipulability maps, and the eq. 4.7 check"

@@ -13,7 +13,8 @@ import argparse
 
 from tqdm import tqdm
 
-from ..verify import FRAMES, verify
+from carmkin.robot.verify import FRAMES, verify
+
 from ._common import add_preset_argument, system_from_args
 
 HELP = "cross-check closed-form kinematics against Pinocchio (exit 1 above tolerance)"

@@ -25,8 +25,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InvalidConfigurationError, InvalidPoseError
-from ..geometry import JOINT_NAMES, PRISMATIC
+from carmkin.errors import InvalidConfigurationError, InvalidPoseError
+from carmkin.model.params import JOINT_NAMES, PRISMATIC
+
 from ._common import add_preset_argument, system_from_args
 
 HELP = "show the C-arm + table in the browser (meshcat on 127.0.0.1, or --html FILE)"
@@ -100,7 +101,7 @@ def _draw(viewer, args) -> None:
 
 
 def _write_static(viewer, args) -> None:
-    from ..viz import screenshot
+    from carmkin.viz import screenshot
 
     if args.html:
         viewer.save_html(args.html)
@@ -115,7 +116,7 @@ def _write_static(viewer, args) -> None:
 
 
 def _serve(system, args, q) -> None:
-    from ..viz import CArmViewer, LoopbackServer
+    from carmkin.viz import CArmViewer, LoopbackServer
 
     stop = threading.Event()
     previous = signal.signal(signal.SIGTERM, lambda *_: stop.set())
@@ -134,7 +135,7 @@ def _serve(system, args, q) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..viz import CArmViewer
+    from carmkin.viz import CArmViewer
 
     system = system_from_args(args)
     q = parse_configuration(args.q, "--q") if args.q else None

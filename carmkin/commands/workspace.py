@@ -8,7 +8,7 @@ the dissertation's numbers, the fractions of poses reachable within all ranges b
 6-DOF model (generating configuration or analytic 6-DOF IK), and optionally writes JSON and a plot.
 
 With ``--table-dofs none|paper|translations|all|compare`` it runs instead the study generalised to multi-DOF
-tables (:mod:`carmkin.table_workspace`; preset default ``siremobile-iso-c3d-motorized-table``): the fraction
+tables (:mod:`carmkin.studies.table_workspace`; preset default ``siremobile-iso-c3d-motorized-table``): the fraction
 of ``--poses`` random desired poses reachable with the C-arm alone, + d0, + the three table translations, +
 all table joints; JSON ``{"<model>": {"fraction": x, "reached": int, "poses": int}}``.
 
@@ -24,7 +24,8 @@ import sys
 
 from tqdm import tqdm
 
-from .. import table_workspace, workspace
+from carmkin.studies import table_workspace, workspace
+
 from ._common import DEFAULT_PRESET, add_preset_argument, system_from_args
 
 #: Preset used by ``--table-dofs`` when ``--preset`` is left at its default.
@@ -65,7 +66,7 @@ def _print_table(result: workspace.StudyResult) -> None:
 
 
 def run_table_study(args: argparse.Namespace) -> int:
-    """The generalised study of :mod:`carmkin.table_workspace`."""
+    """The generalised study of :mod:`carmkin.studies.table_workspace`."""
     if args.preset == DEFAULT_PRESET:
         args.preset = TABLE_PRESET
     system = system_from_args(args)

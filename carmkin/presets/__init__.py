@@ -9,11 +9,17 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import kinematics
-from ..errors import InvalidParameterError, UnknownPresetError
-from ..geometry import BodyGeometry, CArmGeometry, JointRange, TableGeometry, TableSetup
-from ..system import CArmSystem
-from ..table_joints import CHAIN_ORDER, KINDS, standard_joints
+from carmkin.errors import InvalidParameterError, UnknownPresetError
+from carmkin.model import kinematics
+from carmkin.model.params import (
+    BodyGeometry,
+    CArmGeometry,
+    JointRange,
+    TableGeometry,
+    TableSetup,
+)
+from carmkin.model.system import CArmSystem
+from carmkin.model.table_joints import CHAIN_ORDER, KINDS, standard_joints
 
 _MM = 1e-3
 _CARM_JOINTS = {"vertical": _MM, "wigwag": math.pi / 180, "horizontal": _MM, "angular": math.pi / 180,

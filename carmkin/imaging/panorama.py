@@ -1,0 +1,404 @@
+"""Parallax-free panorama planning (§4.4, Table 4.3): from a principal point in the panorama to joint moves.
+
+The panorama frame is the image of the reference X-ray pose ``P_ref`` (pose of ``xray_source`` in the
+table frame 0). A shot is given by its principal point ``p`` (pixels) in that frame:
+
+1. ``V_p = K⁻¹ p`` (normalized): the new principal axis in the reference source frame (eq. 4.18);
+2. ``R`` = the minimal rotation taking the principal axis ``e_z`` to ``V_p`` (roll choice: no rotation about
+   the axis beyond the tilt, see :func:`carmkin.imaging.rotation_between`); it is the orientation of the new
+   view in the reference view (see ``docs/errata/panorama.md`` for the printed "from V_p to [0;0;1]");
+3. ``H = K R K⁻¹`` maps the new image onto the panorama (Table 4.3 step 4 prints ``K⁻¹ R K``: erratum);
+4. target pose ``P_ref · [R 0; 0 1]`` (eq. 4.19): same source position relative to the table;
+5. closed-form IK (:mod:`carmkin.analytic_ik`, rules of §4.4.2), validity (§4.4.3,
+   :mod:`carmkin.robot.validity`: joint ranges, collisions, principal axis meets the table top); the other
+   branch is tried when the chosen one is invalid, and the QP IK (:mod:`carmkin.qp_ik`) when none is;
+6. joint moves from the current configuration and the outline of the predicted image in the panorama.
+
+Units: m and rad; pixels for image coordinates.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+from scipy.optimize import brentq
+
+from carmkin import imaging
+from carmkin.errors import CarmkinError, InvalidConfigurationError
+from carmkin.robot.collision import CollisionScene, Obstacle
+from carmkin.transforms import check_rigid_transform
+
+
+class PanoramaError(CarmkinError):
+    """Bad input to the panorama planner (principal point, length, overlap, direction, ...)."""
+
+
+#: Map categories, in the order of the colours of :func:`plot_validity_map`.
+CATEGORIES = ("valid", "joint out of range", "collision", "table not in cone", "no IK solution")
+
+
+def reference_configuration(system) -> np.ndarray:
+    """Default reference configuration (nq,): every joint at the middle of its range.
+
+    For the Siremobile preset that is wigwag, angular and orbital at 0°, the table translation at 0,
+    vertical 200 mm and horizontal 100 mm.
+    """
+    return 0.5 * (system.lower + system.upper)
+
+
+@dataclass
+class Shot:
+    """One planned X-ray shot.
+
+    ``principal_point`` (2,) px in the panorama; ``axis`` (3,) unit V_p in the reference source frame;
+    ``R`` (3, 3) orientation of the shot in the reference source frame; ``H`` (3, 3) shot image → panorama;
+    ``target`` (4, 4) source pose in the table frame; ``q`` (nq,) planned joints (the chosen closed-form
+    branch when invalid; NaN when there is no solution); ``path``: ``"closed_form"``, ``"qp"`` or
+    ``"none"``; ``valid``; ``reasons``: why not valid (empty when valid); ``category``: one of
+    :data:`CATEGORIES`; ``moves`` (nq,): ``q − q_current`` (m, rad); ``outline`` (M, 2): border of the
+    predicted image in the panorama (px); ``residual``: max(position m, angle rad) of FK(q) vs target.
+    """
+
+    principal_point: np.ndarray
+    axis: np.ndarray
+    R: np.ndarray
+    H: np.ndarray
+    target: np.ndarray
+    q: np.ndarray
+    path: str
+    valid: bool
+    reasons: tuple[str, ...]
+    category: str
+    moves: np.ndarray
+    outline: np.ndarray
+    residual: float
+    validity: object = None
+    ik: object = None
+
+    @property
+    def table_translation(self) -> float:
+        """Move of d0 (m): the C-arm relative to the table along Z0 (the table moves by −Δd0)."""
+        return float(self.moves[0])
+
+
+def pose_residual(T, T_target) -> float:
+    """max(position error (m), rotation angle (rad)) between two poses."""
+    dp = np.linalg.norm(T[:3, 3] - T_target[:3, 3])
+    E = T_target[:3, :3].T @ T[:3, :3]
+    sin = 0.5 * np.linalg.norm([E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1]])
+    return float(max(dp, np.arctan2(sin, 0.5 * (np.trace(E) - 1.0))))
+
+
+def _category(report) -> str:
+    if report is None:
+        return "no IK solution"
+    if report.joints:
+        return "joint out of range"
+    if report.collisions:
+        return "collision"
+    if not report.table_in_cone:
+        return "table not in cone"
+    return "valid"
+
+
+class PanoramaPlanner:
+    """Plans shots of a parallax-free panorama for ``system`` around the reference pose.
+
+    ``q_reference`` (nq,): configuration of the reference (first) X-ray image, default
+    :func:`reference_configuration`; ``P_ref`` = FK of it unless ``P_ref`` (4, 4) is given (then
+    ``q_reference`` is only the starting configuration of the moves). ``obstacles``: extra bodies (table
+    frame). ``fallback``: try the QP IK when no closed-form branch is valid. ``margin`` (m): collision
+    margin of the validity check.
+    """
+
+    def __init__(self, system, q_reference=None, P_ref=None, obstacles: Sequence[Obstacle] = (),
+                 fallback: bool = True, margin: float = 0.0) -> None:
+        self.system = system
+        q = reference_configuration(system) if q_reference is None else np.asarray(q_reference, dtype=float)
+        if q.shape != (system.nq,) or not np.all(np.isfinite(q)):
+            raise InvalidConfigurationError(f"q_reference must be finite with shape ({system.nq},), got {q.shape}")
+        self.q_reference = q
+        self.P_ref = system.fk(q) if P_ref is None else check_rigid_transform(P_ref, "P_ref")
+        self.K = system.carm.intrinsics()
+        self.K_inv = np.linalg.inv(self.K)
+        self.size = (system.carm.detector_columns, system.carm.detector_rows)
+        self.obstacles = tuple(obstacles)
+        self.scene = CollisionScene.from_system(system, self.obstacles)
+        self.fallback = fallback
+        self.margin = margin
+
+    # --- one shot (Table 4.3) ---------------------------------------------------------------------------
+    def rotation_for(self, principal_point) -> tuple[np.ndarray, np.ndarray]:
+        """``(V_p, R)``: unit principal axis K⁻¹p (reference source frame) and the minimal rotation e_z → V_p."""
+        p = np.asarray(principal_point, dtype=float)
+        if p.shape != (2,) or not np.all(np.isfinite(p)):
+            raise PanoramaError(f"principal point must be two finite pixel coordinates (u, v), got {p!r}")
+        V = self.K_inv @ np.array([p[0], p[1], 1.0])
+        V /= np.linalg.norm(V)
+        return V, imaging.rotation_between((0.0, 0.0, 1.0), V)
+
+    def target_pose(self, R) -> np.ndarray:
+        """Eq. 4.19: ``P_ref · [R 0; 0 1]`` (4, 4), the source pose in the table frame."""
+        M = np.eye(4)
+        M[:3, :3] = R
+        return self.P_ref @ M
+
+    def _check(self, q):
+        from carmkin.robot import validity
+
+        return validity.check(self.system, q, margin=self.margin, scene=self.scene)
+
+    def _solve(self, T, q_current, fallback: bool):
+        """(q, path, report, ik, reasons): the first valid closed-form branch, else the QP, else the best try."""
+        from carmkin import analytic_ik
+
+        reasons: list[str] = []
+        ik = None
+        first = None  # (q, report) of the chosen branch, returned when nothing is valid
+        try:
+            ik = analytic_ik.solve(self.system, T, q_current=q_current)
+        except CarmkinError as exc:
+            reasons.append(f"closed form: {exc}")
+        if ik is not None:
+            order = [ik.chosen] + [k for k in range(len(ik.solutions)) if k != ik.chosen]
+            for k in order:
+                q_k = np.asarray(ik.solutions[k], dtype=float)
+                if not ik.branches[k].reached or not np.all(np.isfinite(q_k)):
+                    reasons.append(f"branch {k}: pose not reached")
+                    continue
+                report = self._check(q_k)
+                if report.valid:
+                    return q_k, "closed_form", report, ik, ()
+                first = first or (q_k, report)
+                reasons.append(f"branch {k}: " + "; ".join(report.reasons))
+        if fallback and (first is None or first[1].table_in_cone):
+            from carmkin import qp_ik
+
+            result = qp_ik.solve(self.system, T, q_current=q_current, obstacles=self.obstacles)
+            if result.success and np.all(np.isfinite(result.q)):
+                report = self._check(result.q)
+                if report.valid:
+                    return result.q, "qp", report, ik, ()
+                reasons.append("QP: " + "; ".join(report.reasons))
+            else:
+                runs = [r for r in (result.reason or "").split(" | ") if r.startswith("QP")]
+                reasons.append("QP IK: " + (" | ".join(runs) or str(result.reason)))
+        if first is None:
+            return np.full(self.system.nq, np.nan), "none", None, ik, tuple(reasons)
+        return first[0], "closed_form", first[1], ik, tuple(reasons)
+
+    def shot(self, principal_point, q_current=None, fallback: bool | None = None) -> Shot:
+        """Plan the shot whose principal point is ``principal_point`` (u, v) px in the panorama.
+
+        ``q_current`` (nq,): configuration the moves start from (default: the reference configuration);
+        ``fallback``: try the QP IK when no closed-form branch is valid (default: the planner's setting).
+        """
+        q_current = self.q_reference if q_current is None else np.asarray(q_current, dtype=float)
+        V, R = self.rotation_for(principal_point)
+        H = imaging.rotation_homography(self.K, R)
+        T = self.target_pose(R)
+        fallback = self.fallback if fallback is None else fallback
+        q, path, report, ik, reasons = self._solve(T, q_current, fallback)
+        category = _category(report)
+        valid = category == "valid"
+        residual = pose_residual(self.system.fk(q), T) if np.all(np.isfinite(q)) else float("inf")
+        outline = self.outline(H)
+        return Shot(np.asarray(principal_point, dtype=float), V, R, H, T, q, path, valid,
+                    () if valid else reasons, category, q - q_current, outline, residual, report, ik)
+
+    def outline(self, H, per_edge: int = 16) -> np.ndarray:
+        """Border of an image mapped into the panorama by ``H`` (px); NaN where it leaves the half-space."""
+        border = imaging.homogeneous(imaging.image_border(*self.size, per_edge))
+        m = border @ H.T
+        out = np.full((len(m), 2), np.nan)
+        ahead = m[:, 2] > 1e-12
+        out[ahead] = m[ahead, :2] / m[ahead, 2:]
+        return out
+
+    # --- a panorama along a line ----------------------------------------------------------------------
+    def default_direction(self) -> np.ndarray:
+        """Unit direction (3,) in the reference image plane along the table axis Z0 (the long axis)."""
+        d = self.P_ref[:3, :3].T @ np.array([0.0, 0.0, 1.0])
+        d[2] = 0.0
+        if np.linalg.norm(d) < 1e-9:
+            raise PanoramaError("the table axis is parallel to the principal axis: give a direction")
+        return d / np.linalg.norm(d)
+
+    def direction_from_pixels(self, du: float, dv: float) -> np.ndarray:
+        """Unit direction (3,) on a plane ⟂ to the reference axis from a panorama direction (du, dv) px."""
+        d = np.array([du / self.K[0, 0], dv / self.K[1, 1], 0.0])
+        if not np.all(np.isfinite(d)) or np.linalg.norm(d) < 1e-15:
+            raise PanoramaError(f"direction must be a non-zero (du, dv), got {(du, dv)}")
+        return d / np.linalg.norm(d)
+
+    def default_object_distance(self) -> float:
+        """Distance (m) along the reference axis to where it leaves the table-top box (the patient side).
+
+        Falls back to half the source-to-detector distance when the axis misses the table top.
+        """
+        table = self.system.table
+        lo = np.asarray(table.top_center) - 0.5 * np.asarray(table.top_size)
+        hi = np.asarray(table.top_center) + 0.5 * np.asarray(table.top_size)
+        p, z = self.P_ref[:3, 3], self.P_ref[:3, 2]
+        t_exit = np.inf
+        t_enter = -np.inf
+        for k in range(3):
+            if abs(z[k]) < 1e-15:
+                if not lo[k] <= p[k] <= hi[k]:
+                    return 0.5 * self.system.carm.source_to_detector
+                continue
+            a, b = (lo[k] - p[k]) / z[k], (hi[k] - p[k]) / z[k]
+            t_enter, t_exit = max(t_enter, min(a, b)), min(t_exit, max(a, b))
+        if t_enter > t_exit or t_exit <= 0:
+            return 0.5 * self.system.carm.source_to_detector
+        return float(t_exit)
+
+    def extent(self, s: float, direction, distance: float) -> tuple[float, float]:
+        """Interval of the line ``X(σ) = distance·e_z + σ·direction`` (reference frame, m) that the shot
+        aimed at ``X(s)`` sees on its detector: ``(σ_lo, σ_hi)`` (m)."""
+        c = np.array([0.0, 0.0, distance])
+        _, R = self.rotation_for((self.K @ (c + s * direction))[:2] / (c + s * direction)[2])
+        a, b = self.K @ R.T @ c, self.K @ R.T @ direction
+        (w, h), lo, hi = self.size, -np.inf, np.inf
+        constraints = [(a[2], b[2])]  # depth > 0
+        for k, limit in ((0, -0.5), (1, -0.5)):
+            constraints.append((a[k] - limit * a[2], b[k] - limit * b[2]))  # m_k/m_2 ≥ limit
+        for k, limit in ((0, w - 0.5), (1, h - 0.5)):
+            constraints.append((limit * a[2] - a[k], limit * b[2] - b[k]))  # m_k/m_2 ≤ limit
+        for alpha, beta in constraints:  # alpha + σ beta ≥ 0
+            if abs(beta) < 1e-15:
+                if alpha < 0:
+                    return (np.nan, np.nan)
+                continue
+            if beta > 0:
+                lo = max(lo, -alpha / beta)
+            else:
+                hi = min(hi, -alpha / beta)
+        return float(lo), float(hi)
+
+    def line_shots(self, length: float, overlap: float = 0.0, direction=None,
+                   distance: float | None = None) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+        """Aim points along the line covering ``length`` (m) centred on the reference axis.
+
+        Returns ``(s, extents, distance, direction)``: aim parameters (n,) (m along ``direction`` on the
+        plane ⟂ to the reference axis at ``distance``), their seen intervals (n, 2), the distance and the
+        unit direction. Shots are placed greedily from ``−length/2``: each starts ``overlap`` (fraction of
+        the previous shot's interval, 0 ≤ overlap < 1) before the previous one ends; the last one reaches
+        ``+length/2``.
+        """
+        if not np.isfinite(length) or length <= 0:
+            raise PanoramaError(f"length must be > 0 (m), got {length}")
+        if not np.isfinite(overlap) or not 0.0 <= overlap < 1.0:
+            raise PanoramaError(f"overlap must be in [0, 1), got {overlap}")
+        direction = self.default_direction() if direction is None else np.asarray(direction, dtype=float)
+        if direction.shape != (3,) or abs(direction[2]) > 1e-12 or abs(np.linalg.norm(direction) - 1) > 1e-9:
+            raise PanoramaError("direction must be a unit (3,) vector ⟂ to the reference principal axis")
+        distance = self.default_object_distance() if distance is None else float(distance)
+        if not np.isfinite(distance) or distance <= 0:
+            raise PanoramaError(f"object distance must be > 0 (m), got {distance}")
+        start, end = -0.5 * length, 0.5 * length
+        aims, extents = [], []
+        target = start
+        for _ in range(1000):
+            def gap(s):
+                return self.extent(s, direction, distance)[0] - target
+            step = max(distance, 1e-3)
+            hi = target + step
+            while gap(hi) < 0:
+                hi += step
+                if hi - target > 100 * step:
+                    raise PanoramaError("cannot place a shot along the line (too oblique)")
+            s = brentq(gap, target - step, hi, xtol=1e-13)
+            lo_s, hi_s = self.extent(s, direction, distance)
+            aims.append(s)
+            extents.append((lo_s, hi_s))
+            if hi_s >= end:
+                break
+            target = hi_s - overlap * (hi_s - lo_s)
+        else:
+            raise PanoramaError("more than 1000 shots needed")
+        return np.array(aims), np.array(extents), distance, direction
+
+    def principal_point_of(self, s: float, direction, distance: float) -> np.ndarray:
+        """Panorama pixel (2,) of the aim point ``distance·e_z + s·direction`` (reference frame)."""
+        X = np.array([0.0, 0.0, distance]) + s * np.asarray(direction)
+        m = self.K @ X
+        return m[:2] / m[2]
+
+    def plan(self, length: float, overlap: float = 0.0, direction=None, distance: float | None = None) -> "Plan":
+        """Shots covering ``length`` (m) on the object plane (see :meth:`line_shots`), each planned from the
+        previous valid shot's joints (the first from the reference configuration)."""
+        aims, extents, distance, direction = self.line_shots(length, overlap, direction, distance)
+        shots, q = [], self.q_reference
+        for s in aims:
+            shot = self.shot(self.principal_point_of(s, direction, distance), q_current=q)
+            shots.append(shot)
+            if shot.valid:  # an invalid shot cannot be taken: the next moves start where the C-arm is
+                q = shot.q
+        return Plan(shots, aims, extents, distance, direction, length, overlap)
+
+    # --- validity map -----------------------------------------------------------------------------------
+    def validity_map(self, us, vs, fallback: bool = False) -> np.ndarray:
+        """Category index (len(vs), len(us)) into :data:`CATEGORIES` for each principal point (u, v) px.
+
+        Starts every shot from the reference configuration; by default without the QP fallback (which
+        cannot change a 6-DOF pose's two branches and costs ~30 ms per invalid point).
+        """
+        out = np.empty((len(vs), len(us)), dtype=int)
+        for i, v in enumerate(vs):
+            for j, u in enumerate(us):
+                out[i, j] = CATEGORIES.index(self.shot((u, v), fallback=fallback).category)
+        return out
+
+
+@dataclass
+class Plan:
+    """A panorama plan: ``shots``, aim parameters ``aims`` (m), seen intervals ``extents`` (n, 2) (m) on
+    the object plane at ``distance`` (m) along ``direction`` (unit, reference source frame)."""
+
+    shots: list
+    aims: np.ndarray
+    extents: np.ndarray
+    distance: float
+    direction: np.ndarray
+    length: float
+    overlap: float
+
+    @property
+    def valid(self) -> bool:
+        return all(s.valid for s in self.shots)
+
+    @property
+    def table_translations(self) -> np.ndarray:
+        """Δd0 (m) of each shot from the previous valid one (the first from the reference configuration)."""
+        return np.array([s.table_translation for s in self.shots])
+
+
+def plot_validity_map(planner: PanoramaPlanner, us, vs, categories: np.ndarray, path=None, shots=()):
+    """Matplotlib figure of a validity map (categories from :meth:`PanoramaPlanner.validity_map`), the
+    reference image border and the outlines of ``shots``; saved to ``path`` when given."""
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import ListedColormap
+    from matplotlib.patches import Patch
+
+    colors = ["#4caf50", "#ff9800", "#e53935", "#9e9e9e", "#212121"]
+    fig, ax = plt.subplots(figsize=(7, 5))
+    du, dv = (us[1] - us[0]) if len(us) > 1 else 1.0, (vs[1] - vs[0]) if len(vs) > 1 else 1.0
+    ax.imshow(categories, cmap=ListedColormap(colors), vmin=-0.5, vmax=len(CATEGORIES) - 0.5, origin="upper",
+              extent=(us[0] - du / 2, us[-1] + du / 2, vs[-1] + dv / 2, vs[0] - dv / 2), interpolation="nearest")
+    border = imaging.image_border(*planner.size)
+    ax.plot(border[:, 0], border[:, 1], "b-", lw=1.5, label="reference image")
+    for k, shot in enumerate(shots):
+        ax.plot(shot.outline[:, 0], shot.outline[:, 1], "w--", lw=1)
+        ax.plot(*shot.principal_point, "w+")
+    ax.set_xlabel("u (px, panorama frame)")
+    ax.set_ylabel("v (px)")
+    ax.set_title("validity of principal points (§4.4.3)")
+    ax.legend(handles=[Patch(color=c, label=n) for c, n in zip(colors, CATEGORIES)], loc="upper left",
+              bbox_to_anchor=(1.01, 1.0), fontsize=7)
+    ax.set_aspect("equal")
+    if path is not None:
+        fig.savefig(path, dpi=110, bbox_inches="tight")
+    return fig

@@ -1,0 +1,252 @@
+"""Value objects describing the C-arm, the table and how they are set up (SI units: m, rad).
+
+They are frozen dataclasses validated on construction: a bad value raises
+:class:`~carmkin.errors.InvalidParameterError` naming the field.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields
+
+import numpy as np
+
+from carmkin.errors import InvalidParameterError
+from carmkin.transforms import check_rigid_transform
+
+#: Joint names of the 6-DOF chain, in the order of ``q = [d0, d1, theta2, d3, theta4, theta5]``.
+JOINT_NAMES = ("table_translation", "vertical", "wigwag", "horizontal", "angular", "orbital")
+#: ``True`` where the joint of :data:`JOINT_NAMES` is prismatic (m), ``False`` where revolute (rad).
+PRISMATIC = (True, True, False, True, False, False)
+
+
+def _check_finite(owner: str, name: str, value) -> float:
+    try:
+        value = float(value)
+    except (TypeError, ValueError) as exc:
+        raise InvalidParameterError(f"{owner}.{name} must be a number, got {value!r}") from exc
+    if not math.isfinite(value):
+        raise InvalidParameterError(f"{owner}.{name} must be finite, got {value}")
+    return value
+
+
+def _check_positive(owner: str, name: str, value) -> float:
+    value = _check_finite(owner, name, value)
+    if value <= 0.0:
+        raise InvalidParameterError(f"{owner}.{name} must be > 0, got {value}")
+    return value
+
+
+@dataclass(frozen=True)
+class JointRange:
+    """Closed range ``[lower, upper]`` of one joint (m for prismatic, rad for revolute joints)."""
+
+    lower: float
+    upper: float
+    name: str = "joint"
+
+    def __post_init__(self) -> None:
+        lower = _check_finite(self.name, "lower", self.lower)
+        upper = _check_finite(self.name, "upper", self.upper)
+        if lower > upper:
+            raise InvalidParameterError(f"{self.name}: lower limit {lower} > upper limit {upper}")
+        object.__setattr__(self, "lower", lower)
+        object.__setattr__(self, "upper", upper)
+
+    def excess(self, value):
+        """Signed distance outside the range: < 0 below ``lower``, > 0 above ``upper``, 0 inside."""
+        value = np.asarray(value, dtype=float)
+        return np.where(value < self.lower, value - self.lower, np.where(value > self.upper, value - self.upper, 0.0))
+
+
+@dataclass(frozen=True)
+class CArmGeometry:
+    """Geometry and joint ranges of a mobile C-arm (§4.3.1 of the dissertation, Fig. 4.1).
+
+    Attributes:
+        length_offset: l1, distance from the wigwag axis to the X-ray beam (m).
+        orbital_offset: l2, distance from the X-ray source centre to the angular axis (m).
+        a1: distance from the angular axis to the orbital axis (m); 0 for an isocentric C-arm.
+        a2: distance from the X-ray beam centre to the orbital axis (m); 0 for an isocentric C-arm.
+        vertical, wigwag, horizontal, angular, orbital: joint ranges (m or rad).
+        source_to_detector: distance from the source centre to the detector plane along the principal
+            axis (m).
+        detector_width, detector_height: active detector size along image X and Y (m).
+        detector_columns, detector_rows: image size in pixels (width, height).
+        principal_point: pixel coordinates (u, v) of the principal point; ``None`` = image centre.
+    """
+
+    length_offset: float
+    orbital_offset: float
+    a1: float = 0.0
+    a2: float = 0.0
+    vertical: JointRange = field(default_factory=lambda: JointRange(0.0, 0.4, "vertical"))
+    wigwag: JointRange = field(default_factory=lambda: JointRange(-math.radians(10), math.radians(10), "wigwag"))
+    horizontal: JointRange = field(default_factory=lambda: JointRange(0.0, 0.2, "horizontal"))
+    angular: JointRange = field(default_factory=lambda: JointRange(-math.radians(190), math.radians(190), "angular"))
+    orbital: JointRange = field(default_factory=lambda: JointRange(-math.radians(95), math.radians(95), "orbital"))
+    source_to_detector: float = 1.0
+    detector_width: float = 0.23
+    detector_height: float = 0.23
+    detector_columns: int = 800
+    detector_rows: int = 600
+    principal_point: tuple[float, float] | None = None
+
+    def __post_init__(self) -> None:
+        owner = "CArmGeometry"
+        for name in ("length_offset", "orbital_offset", "source_to_detector", "detector_width", "detector_height"):
+            object.__setattr__(self, name, _check_positive(owner, name, getattr(self, name)))
+        for name in ("a1", "a2"):
+            object.__setattr__(self, name, _check_finite(owner, name, getattr(self, name)))
+        for name in ("detector_columns", "detector_rows"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value <= 0:
+                raise InvalidParameterError(f"{owner}.{name} must be a positive integer, got {value!r}")
+        for name in ("vertical", "wigwag", "horizontal", "angular", "orbital"):
+            if not isinstance(getattr(self, name), JointRange):
+                raise InvalidParameterError(f"{owner}.{name} must be a JointRange, got {getattr(self, name)!r}")
+        if self.principal_point is not None:
+            u, v = (_check_finite(owner, "principal_point", x) for x in self.principal_point)
+            object.__setattr__(self, "principal_point", (u, v))
+
+    @property
+    def is_isocentric(self) -> bool:
+        """True when both geometric offsets a1 and a2 are zero."""
+        return self.a1 == 0.0 and self.a2 == 0.0
+
+    @property
+    def joint_ranges(self) -> tuple[JointRange, ...]:
+        """Ranges of the five C-arm joints: vertical, wigwag, horizontal, angular, orbital."""
+        return (self.vertical, self.wigwag, self.horizontal, self.angular, self.orbital)
+
+    @property
+    def pixel_spacing(self) -> tuple[float, float]:
+        """Detector pixel size (m) along image X and Y."""
+        return self.detector_width / self.detector_columns, self.detector_height / self.detector_rows
+
+    def intrinsics(self) -> np.ndarray:
+        """Pinhole intrinsic matrix K (pixels) of the X-ray source/detector pair."""
+        sx, sy = self.pixel_spacing
+        u0, v0 = self.principal_point or ((self.detector_columns - 1) / 2, (self.detector_rows - 1) / 2)
+        f = self.source_to_detector
+        return np.array([[f / sx, 0.0, u0], [0.0, f / sy, v0], [0.0, 0.0, 1.0]])
+
+
+@dataclass(frozen=True)
+class TableSetup:
+    """Where the table frame 0 sits relative to the C-arm's vertical axis (§4.3.1, Fig. 4.2).
+
+    Attributes:
+        gamma1: Ang(Z0, Z1), angle from the table translation axis to the vertical axis about X1 (rad).
+        gamma2: Ang(X0, X1), about Z0 (rad).
+        gamma3: Ang(X1, X2), about Z1 (rad).
+        D1: Dist(Z0, Z1) along X1 (m). D2: Dist(X0, X1) along Z0 (m). D3: Dist(X1, X2) along Z1 (m).
+    """
+
+    gamma1: float
+    gamma2: float
+    gamma3: float
+    D1: float
+    D2: float
+    D3: float
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            object.__setattr__(self, f.name, _check_finite("TableSetup", f.name, getattr(self, f.name)))
+
+    @classmethod
+    def from_pose(cls, T_base_table) -> "TableSetup":
+        """Build the setup from the table frame's pose in the C-arm base frame (eq. 4.3).
+
+        ``T_base_table`` (4x4) maps table-frame coordinates into the C-arm base frame, the frame fixed to
+        the cart with Z along the vertical axis and origin where the vertical joint is zero (frame 1 of the
+        5-DOF model, Fig. 4.1). X1 is the common normal from the table axis Z0 to the vertical axis Z1
+        (DH rule); when the axes are parallel (singular case a) the normal through the table origin is
+        taken, and X1 = X0 when they coincide.
+        """
+        T = check_rigid_transform(T_base_table, "T_base_table")
+        p0, x0, z0 = T[:3, 3], T[:3, 0], T[:3, 2]
+        z1 = np.array([0.0, 0.0, 1.0])
+        normal = np.cross(z0, z1)
+        if np.linalg.norm(normal) > 1e-12:
+            x1 = normal / np.linalg.norm(normal)
+            # Feet of the common normal: p0 + t0 z0 on Z0 and t1 z1 on Z1 with (t1 z1 - p0 - t0 z0) ∥ x1.
+            A = np.column_stack((z0, -z1, x1))
+            t0, t1, _ = np.linalg.solve(A, -p0)
+        else:  # parallel axes: the DH convention takes the normal through the table origin
+            t0 = 0.0
+            t1 = p0[2]
+            offset = np.array([0.0, 0.0, t1]) - p0
+            x1 = offset / np.linalg.norm(offset) if np.linalg.norm(offset) > 1e-12 else x0
+        foot0, foot1 = p0 + t0 * z0, t1 * z1
+        gamma1 = math.atan2(np.dot(np.cross(z0, z1), x1), np.dot(z0, z1))
+        gamma2 = math.atan2(np.dot(np.cross(x0, x1), z0), np.dot(x0, x1))
+        gamma3 = math.atan2(np.dot(np.cross(x1, (1.0, 0.0, 0.0)), z1), x1[0])
+        return cls(gamma1, gamma2, gamma3, D1=float(np.dot(foot1 - foot0, x1)), D2=float(t0), D3=float(-t1))
+
+
+@dataclass(frozen=True)
+class TableGeometry:
+    """The operating table: translation range and the table-top box (table frame 0, metres).
+
+    Attributes:
+        translation: range of the table translation joint d0 (m). d0 is the displacement of the C-arm
+            relative to the table along Z0, so the table itself moves by -d0 relative to the C-arm.
+        top_size: box extents along X0, Y0, Z0 (m).
+        top_center: box centre in frame 0 (m).
+        joints: extra joints of a motorized table (:class:`carmkin.model.table_joints.TableJoint`), ordered from
+            the table top down; empty for the paper's single translation.
+    """
+
+    translation: JointRange = field(default_factory=lambda: JointRange(-0.4, 0.4, "table_translation"))
+    top_size: tuple[float, float, float] = (0.6, 0.06, 2.0)
+    top_center: tuple[float, float, float] = (0.0, 0.18, 0.0)
+    joints: tuple = ()
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.translation, JointRange):
+            raise InvalidParameterError(f"TableGeometry.translation must be a JointRange, got {self.translation!r}")
+        size = tuple(_check_positive("TableGeometry", "top_size", v) for v in self.top_size)
+        center = tuple(_check_finite("TableGeometry", "top_center", v) for v in self.top_center)
+        if len(size) != 3 or len(center) != 3:
+            raise InvalidParameterError("TableGeometry.top_size and top_center need three values each")
+        object.__setattr__(self, "top_size", size)
+        object.__setattr__(self, "top_center", center)
+        object.__setattr__(self, "joints", tuple(self.joints))
+        names = [getattr(j, "name", None) for j in self.joints]
+        if len(set(names)) != len(names) or not all(hasattr(j, "inverse_motion") for j in self.joints):
+            raise InvalidParameterError(f"TableGeometry.joints must be distinct TableJoint objects, got {names}")
+
+
+@dataclass(frozen=True)
+class BodyGeometry:
+    """Extents of the C-arm's collision/visual primitives that the kinematics does not fix (m).
+
+    Lengths along the chain (arm, C radius) follow from :class:`CArmGeometry`; these are the rest.
+    Attributes:
+        floor_height: floor height in the C-arm base frame (negative: below the vertical axis origin).
+        cart_size: cart box extents along base X, Y, Z; the cart stands on the floor behind the column.
+        column_width: side of the square column and of the horizontal arm's cross-section.
+        c_thickness: radial thickness of the C; c_depth: its extent along the orbital axis.
+        source_housing: box extents of the X-ray tube housing (m), behind the focal spot.
+        detector_thickness: thickness of the detector housing behind the detector plane.
+    """
+
+    floor_height: float = -1.0
+    cart_size: tuple[float, float, float] = (0.7, 0.9, 0.9)
+    column_width: float = 0.16
+    c_thickness: float = 0.08
+    c_depth: float = 0.14
+    source_housing: tuple[float, float, float] = (0.24, 0.24, 0.22)
+    detector_thickness: float = 0.15
+
+    def __post_init__(self) -> None:
+        owner = "BodyGeometry"
+        object.__setattr__(self, "floor_height", _check_finite(owner, "floor_height", self.floor_height))
+        for name in ("column_width", "c_thickness", "c_depth", "detector_thickness"):
+            object.__setattr__(self, name, _check_positive(owner, name, getattr(self, name)))
+        for name in ("cart_size", "source_housing"):
+            values = tuple(_check_positive(owner, name, v) for v in getattr(self, name))
+            if len(values) != 3:
+                raise InvalidParameterError(f"{owner}.{name} needs three values, got {len(values)}")
+            object.__setattr__(self, name, values)

@@ -1,0 +1,164 @@
+"""`CArmSystem`: the one source of truth for a C-arm + table model (geometry, limits, setup, body)."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from carmkin.transforms import translation
+
+from . import kinematics
+from .params import (
+    JOINT_NAMES,
+    PRISMATIC,
+    BodyGeometry,
+    CArmGeometry,
+    JointRange,
+    TableGeometry,
+    TableSetup,
+)
+
+
+@dataclass(frozen=True)
+class CArmSystem:
+    """A mobile C-arm and an operating table modelled as one 6-DOF chain (§4.3).
+
+    The joint vector is ``q = [d0, d1, theta2, d3, theta4, theta5]`` (m, m, rad, m, rad, rad): table
+    translation, vertical, wigwag, horizontal, angular, orbital. Poses are expressed in the table frame 0.
+    """
+
+    carm: CArmGeometry
+    setup: TableSetup
+    table: TableGeometry = field(default_factory=TableGeometry)
+    body: BodyGeometry = field(default_factory=BodyGeometry)
+    name: str = "custom"
+
+    def replace(self, **changes) -> "CArmSystem":
+        """A new system with some fields replaced, e.g. ``system.replace(carm=..., setup=...)``."""
+        return dataclasses.replace(self, **changes)
+
+    # --- joints ---------------------------------------------------------------------------------------
+    @property
+    def nq(self) -> int:
+        """Number of joints: 6, plus the extra joints of a motorized table (:mod:`carmkin.model.table_joints`)."""
+        return 6 + len(self.table.joints)
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        """Names of the joints in the order of q: table translation, extra table joints (top down), C-arm."""
+        return JOINT_NAMES[:1] + tuple(j.name for j in self.table.joints) + JOINT_NAMES[1:]
+
+    @property
+    def joint_ranges(self) -> tuple[JointRange, ...]:
+        """Ranges of the joints, in the order of q (m or rad)."""
+        return (self.table.translation,) + tuple(j.range for j in self.table.joints) + self.carm.joint_ranges
+
+    @property
+    def prismatic(self) -> tuple[bool, ...]:
+        """True for each prismatic joint (m), False for each revolute one (rad), in the order of q."""
+        return PRISMATIC[:1] + tuple(j.prismatic for j in self.table.joints) + PRISMATIC[1:]
+
+    def split(self, q) -> tuple[np.ndarray, np.ndarray]:
+        """``(q6, q_table)``: the paper's six joints and the extra table joints of q (nq,) or (N, nq)."""
+        q = kinematics.check_configuration(q, self.nq)
+        k = len(self.table.joints)
+        return np.concatenate((q[..., :1], q[..., 1 + k:]), axis=-1), q[..., 1:1 + k]
+
+    def table_motion(self, q_table: np.ndarray) -> np.ndarray:
+        """``e^{-ξk qk} ··· e^{-ξ1 q1}`` for extra table joint values (k,) or (N, k): (4, 4) or (N, 4, 4).
+
+        The floor-fixed frame ``table_reference`` seen from the table top (see :mod:`carmkin.model.table_joints`).
+        """
+        from .table_joints import inverse_chain
+
+        if q_table.ndim == 1:
+            return inverse_chain(self.table.joints, q_table)
+        return np.array([inverse_chain(self.table.joints, v) for v in q_table])
+
+    def _with_table_joints(self, q, poses_of_q6) -> np.ndarray:
+        """Poses ``Tz(d0) · E(q_table) · P(q6 with d0 = 0)`` for poses P computed by ``poses_of_q6``."""
+        q6, q_table = self.split(q)
+        d0 = q6[..., 0].copy()
+        q6 = q6.copy()
+        q6[..., 0] = 0.0
+        E = self.table_motion(q_table)
+        E[..., 2, 3] += d0
+        P = poses_of_q6(q6)
+        return E[..., None, :, :] @ P if P.ndim == E.ndim + 1 else E @ P
+
+    @property
+    def lower(self) -> np.ndarray:
+        """Lower joint limits (6,)."""
+        return np.array([r.lower for r in self.joint_ranges])
+
+    @property
+    def upper(self) -> np.ndarray:
+        """Upper joint limits (6,)."""
+        return np.array([r.upper for r in self.joint_ranges])
+
+    # --- closed-form kinematics ------------------------------------------------------------------------
+    @cached_property
+    def dh_table(self) -> tuple[kinematics.DHRow, ...]:
+        """The six standard-DH rows of the chain (see :mod:`carmkin.model.kinematics`)."""
+        return kinematics.dh_table(self.carm, self.setup)
+
+    @cached_property
+    def xray_in_flange(self) -> np.ndarray:
+        """``6T_xray`` (eq. 4.2), pose of the X-ray source frame in frame 6."""
+        return kinematics.xray_in_flange(self.carm)
+
+    @cached_property
+    def detector_in_xray(self) -> np.ndarray:
+        """Pose of the ``detector`` frame in the source frame: on the principal axis at the SDD."""
+        return translation(z=self.carm.source_to_detector)
+
+    @cached_property
+    def carm_base_pose(self) -> np.ndarray:
+        """``K = A0(0) A1(0)`` (4, 4): the C-arm base frame (``carm_cart``) in the table frame at rest, d0 = 0."""
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = self.closed_form.R, self.closed_form.p
+        return T
+
+    @cached_property
+    def closed_form(self) -> kinematics.ClosedFormFK:
+        """The expanded closed-form FK of the 6-DOF chain (constants precomputed once per system)."""
+        return kinematics.ClosedFormFK(self.carm, self.setup)
+
+    def fk(self, q) -> np.ndarray:
+        """Pose of ``xray_source`` in the table frame: (4, 4) for q of shape (nq,), (N, 4, 4) for (N, nq)."""
+        if self.table.joints:
+            return self._with_table_joints(q, self._fk6)
+        return self._fk6(kinematics.check_configuration(q))
+
+    def _fk6(self, q6: np.ndarray) -> np.ndarray:
+        return self.closed_form.pose(q6) if q6.ndim == 1 else self.closed_form.poses(q6)
+
+    def dh_frames(self, q) -> np.ndarray:
+        """Poses of DH frames 1..6 in the table frame: (6, 4, 4) for q (nq,), (N, 6, 4, 4) for (N, nq)."""
+        if self.table.joints:
+            return self._with_table_joints(q, lambda q6: kinematics.dh_frames(self.dh_table, q6))
+        return kinematics.dh_frames(self.dh_table, q)
+
+    # --- generated descriptions ----------------------------------------------------------------------
+    def urdf(self) -> str:
+        """URDF text of the chain, generated from ``urdf/carm_table.urdf.xacro`` with this system's numbers."""
+        from carmkin.robot.urdf import urdf_text
+
+        return urdf_text(self)
+
+    def pinocchio(self):
+        """``(model, collision_model, visual_model)`` built by Pinocchio from :meth:`urdf`.
+
+        Built once per system and cached: treat the returned models as read-only (create your own
+        ``pin.Data`` / ``pin.GeometryData`` from them).
+        """
+        return self._pinocchio_models
+
+    @cached_property
+    def _pinocchio_models(self):
+        from carmkin.robot.models import build_models
+
+        return build_models(self.urdf())

@@ -1,0 +1,75 @@
+"""URDF generation: ``urdf/carm_table.urdf.xacro`` expanded with the numbers of a :class:`CArmSystem`.
+
+The xacro file holds the structure (links, joints, primitives); every number is passed as an xacro argument
+computed here from the system, so nothing is typed twice. Expansion uses the ``xacro`` package directly,
+which needs no ROS installation.
+"""
+
+from __future__ import annotations
+
+from importlib import resources
+
+import numpy as np
+import pinocchio as pin
+
+from carmkin.model.system import CArmSystem
+from carmkin.model.table_joints import xacro_spec
+
+#: Number of boxes approximating the C's arc.
+C_SEGMENTS = 8
+
+
+def xacro_path():
+    """Path of the shipped ``carm_table.urdf.xacro``."""
+    return resources.files("carmkin.urdf") / "carm_table.urdf.xacro"
+
+
+def _fmt(*values: float) -> str:
+    return " ".join(repr(float(v)) for v in values)
+
+
+def xacro_arguments(system: CArmSystem) -> dict[str, str]:
+    """The xacro arguments (strings, SI units) that describe ``system``."""
+    carm, body, table = system.carm, system.body, system.table
+    args: dict[str, str] = {}
+    for i, row in enumerate(system.dh_table):
+        args.update({f"r{i}_theta": _fmt(row.theta), f"r{i}_d": _fmt(row.d), f"r{i}_a": _fmt(row.a),
+                     f"r{i}_alpha": _fmt(row.alpha)})
+    row0 = system.dh_table[0]  # its constant part Rz(θ) Tz(d) Tx(a) Rx(α) as one URDF origin
+    args.update(r0_a_cos=_fmt(row0.a * np.cos(row0.theta)), r0_a_sin=_fmt(row0.a * np.sin(row0.theta)),
+                table_joints=xacro_spec(table.joints))
+    for name, joint_range in zip(system.joint_names, system.joint_ranges):
+        args[f"{name}_lower"], args[f"{name}_upper"] = _fmt(joint_range.lower), _fmt(joint_range.upper)
+    source = system.xray_in_flange
+    args.update(
+        gamma3=_fmt(system.setup.gamma3),
+        D3=_fmt(system.setup.D3),
+        source_xyz=_fmt(*source[:3, 3]),
+        source_rpy=_fmt(*pin.rpy.matrixToRpy(source[:3, :3])),
+        source_to_detector=_fmt(carm.source_to_detector),
+        bracket_y=_fmt(carm.a2),
+        detector_width=_fmt(carm.detector_width),
+        detector_height=_fmt(carm.detector_height),
+        arm_length=_fmt(carm.length_offset - carm.a2),
+        c_radius=_fmt(carm.orbital_offset + carm.a1),
+        table_size=_fmt(*table.top_size),
+        table_center=_fmt(*table.top_center),
+        floor_height=_fmt(body.floor_height),
+        cart_size=_fmt(*body.cart_size),
+        column_width=_fmt(body.column_width),
+        c_thickness=_fmt(body.c_thickness),
+        c_depth=_fmt(body.c_depth),
+        source_housing=_fmt(*body.source_housing),
+        detector_thickness=_fmt(body.detector_thickness),
+        c_segments=str(C_SEGMENTS),
+    )
+    return args
+
+
+def urdf_text(system: CArmSystem) -> str:
+    """URDF XML of ``system``."""
+    import xacro
+
+    with resources.as_file(xacro_path()) as path:
+        document = xacro.process_file(str(path), mappings=xacro_arguments(system))
+    return document.toprettyxml(indent="  ")

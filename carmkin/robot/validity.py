@@ -1,0 +1,155 @@
+"""Validity of a C-arm configuration (§4.4.3): joint ranges, collisions, table inside the X-ray cone.
+
+A configuration is invalid when a joint leaves its mechanical range, when a C-arm part intersects the table
+top (or an obstacle, or the floor), or when the table is not within the X-ray cone beam. Following §4.4.3,
+the table is "within the cone" when the principal axis meets the table-top box; here the axis is taken as
+the segment from the source centre to the detector plane (the beam does not extend past the detector).
+Collisions use the oriented boxes of the collision model with coal (the dissertation used the separating
+axis test on the same OBBs) and the pair list of :mod:`carmkin.robot.collision`. Lengths in metres, angles in
+radians, all in the table frame 0.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+import pinocchio as pin
+
+from carmkin.errors import InvalidConfigurationError
+
+from .collision import CollisionScene, Obstacle, link_of
+
+
+@dataclass(frozen=True)
+class JointViolation:
+    """Joint ``name`` at ``value`` is outside its range by ``excess`` (< 0 below lower, > 0 above upper)."""
+
+    name: str
+    value: float
+    excess: float
+
+
+@dataclass(frozen=True)
+class Contact:
+    """Geometries ``first``/``second`` (links ``links``) closer than the margin: signed ``distance`` (m)."""
+
+    first: str
+    second: str
+    distance: float
+
+    @property
+    def links(self) -> tuple[str, str]:
+        return link_of(self.first), link_of(self.second)
+
+
+@dataclass(frozen=True)
+class ValidityReport:
+    """Every violated condition of one configuration.
+
+    Attributes:
+        joints: joints out of range. collisions: pairs with distance < ``margin`` (intersecting when
+        ``margin`` = 0). table_in_cone: whether the principal axis meets the table-top box.
+        min_distance: smallest signed distance over the pairs (m). margin: the margin used (m).
+    """
+
+    q: np.ndarray
+    joints: tuple[JointViolation, ...]
+    collisions: tuple[Contact, ...]
+    table_in_cone: bool
+    min_distance: float
+    margin: float = 0.0
+    reasons: tuple[str, ...] = field(default=())
+
+    @property
+    def valid(self) -> bool:
+        """True when no condition is violated (joints in range, no collision, table in the cone)."""
+        return not self.joints and not self.collisions and self.table_in_cone
+
+    @property
+    def reachable(self) -> bool:
+        """Joints in range and no collision: valid as a pose of the machine, whatever the beam sees."""
+        return not self.joints and not self.collisions
+
+    def __str__(self) -> str:
+        return "valid" if self.valid else "; ".join(self.reasons)
+
+
+def segment_hits_box(p0: np.ndarray, p1: np.ndarray, center, size) -> bool:
+    """True when the segment p0→p1 meets the axis-aligned box of ``center`` and full ``size`` (slab test)."""
+    center, half = np.asarray(center, float), 0.5 * np.asarray(size, float)
+    lo, hi = center - half, center + half
+    d = p1 - p0
+    t0, t1 = 0.0, 1.0
+    for k in range(3):
+        if abs(d[k]) < 1e-15:
+            if p0[k] < lo[k] or p0[k] > hi[k]:
+                return False
+            continue
+        a, b = (lo[k] - p0[k]) / d[k], (hi[k] - p0[k]) / d[k]
+        t0, t1 = max(t0, min(a, b)), min(t1, max(a, b))
+        if t0 > t1:
+            return False
+    return True
+
+
+def table_in_cone(system, q) -> bool:
+    """Whether the principal axis (source centre to detector plane) meets the table-top box (frame 0)."""
+    T = system.fk(q)
+    source = T[:3, 3]
+    detector = source + system.carm.source_to_detector * T[:3, 2]
+    return segment_hits_box(source, detector, system.table.top_center, system.table.top_size)
+
+
+def check(
+    system,
+    q,
+    obstacles: Sequence[Obstacle] = (),
+    margin: float = 0.0,
+    scene: CollisionScene | None = None,
+) -> ValidityReport:
+    """Report every violated condition of configuration ``q`` (nq,) of ``system``.
+
+    ``margin`` (m): pairs closer than it count as collisions (0 = only intersecting pairs). Pass a
+    prebuilt ``scene`` (from :meth:`CollisionScene.from_system`, holding the obstacles) to avoid
+    rebuilding it per call; ``obstacles`` and ``scene`` together are an error.
+    """
+    model = system.pinocchio()[0]
+    q = np.asarray(q, dtype=float)
+    if q.shape != (model.nq,) or not np.all(np.isfinite(q)):
+        raise InvalidConfigurationError(f"q must be a finite vector of shape ({model.nq},), got {q.shape}")
+    if not np.isfinite(margin) or margin < 0:
+        raise InvalidConfigurationError(f"margin must be finite and >= 0 (m), got {margin}")
+    if scene is not None and obstacles:
+        raise InvalidConfigurationError("give the obstacles either in the scene or as obstacles, not both")
+    scene = scene if scene is not None else CollisionScene.from_system(system, obstacles)
+    joints = tuple(
+        JointViolation(r.name if r.name != "joint" else n, float(v), float(r.excess(v)))
+        for n, r, v in zip(system.joint_names, system.joint_ranges, q)
+        if r.excess(v) != 0.0
+    )
+    data = model.createData()
+    pin.forwardKinematics(model, data, q)
+    distances = scene.distances(data)
+    collisions = tuple(
+        Contact(scene.pairs[k][0], scene.pairs[k][1], float(distances[k])) for k in np.flatnonzero(distances < margin)
+    )
+    in_cone = table_in_cone(system, q)
+    reasons = [f"joint {j.name} out of range by {j.excess:+.6g} (value {j.value:.6g})" for j in joints]
+    reasons += [
+        f"{c.links[0]} {'intersects' if c.distance < 0 else 'is within the margin of'} {c.links[1]} "
+        f"({c.first}/{c.second}, distance {c.distance:.4g} m)"
+        for c in collisions
+    ]
+    if not in_cone:
+        reasons.append("table not in the X-ray cone (principal axis misses the table top)")
+    return ValidityReport(
+        q=q,
+        joints=joints,
+        collisions=collisions,
+        table_in_cone=in_cone,
+        min_distance=float(distances.min()) if distances.size else float("inf"),
+        margin=float(margin),
+        reasons=tuple(reasons),
+    )

@@ -1,0 +1,103 @@
+"""Multi-DOF operating tables: the model, its URDF and Pinocchio agree; joint motions mean what they say."""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from strategies import PRESET, finite
+
+import carmkin
+from carmkin import InvalidParameterError, JointRange
+from carmkin.model.table_joints import CHAIN_ORDER, TableJoint, standard_joints
+from carmkin.robot.verify import (
+    FRAMES,
+    closed_form_frames,
+    pinocchio_frames,
+    rotation_angle_between,
+)
+
+MOTORIZED = carmkin.load_preset("siremobile-iso-c3d-motorized-table")
+
+
+def _q(system, **values) -> np.ndarray:
+    q = np.zeros(system.nq)
+    for name, value in values.items():
+        q[system.joint_names.index(name)] = value
+    return q
+
+
+@st.composite
+def table_configurations(draw, system=MOTORIZED) -> np.ndarray:
+    return np.array([draw(st.floats(r.lower - 0.2, r.upper + 0.2, **finite)) for r in system.joint_ranges])
+
+
+def test_motorized_preset_has_the_five_extra_joints_in_chain_order():
+    assert MOTORIZED.nq == 11
+    assert MOTORIZED.joint_names == ("table_translation",) + tuple(reversed(CHAIN_ORDER)) + carmkin.JOINT_NAMES[1:]
+    model = MOTORIZED.pinocchio()[0]
+    assert [model.names[i] for i in range(1, model.njoints)] == list(MOTORIZED.joint_names)
+    assert np.allclose(model.lowerPositionLimit, MOTORIZED.lower) and np.allclose(model.upperPositionLimit, MOTORIZED.upper)
+
+
+@settings(max_examples=40)
+@given(st.lists(table_configurations(), min_size=1, max_size=10))
+def test_closed_form_equals_pinocchio_with_table_joints(qs):
+    q = np.array(qs)
+    a, b = closed_form_frames(MOTORIZED, q), pinocchio_frames(MOTORIZED, q)
+    assert np.linalg.norm(a[..., :3, 3] - b[..., :3, 3], axis=-1).max() <= 1e-12
+    assert rotation_angle_between(a[..., :3, :3], b[..., :3, :3]).max() <= 1e-12
+    assert np.abs(MOTORIZED.fk(q) - np.array([MOTORIZED.fk(qk) for qk in q])).max() <= 1e-15
+
+
+@given(table_configurations())
+def test_with_table_joints_at_zero_the_chain_is_the_papers(q):
+    k = len(MOTORIZED.table.joints)
+    q[1:1 + k] = 0.0
+    q6 = np.concatenate((q[:1], q[1 + k:]))
+    assert np.abs(MOTORIZED.fk(q) - PRESET.fk(q6)).max() <= 1e-15
+
+
+def _floor_in_table(system, q) -> pin.SE3:
+    model = system.pinocchio()[0]
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, q)
+    return data.oMf[model.getFrameId("table_reference")]
+
+
+def test_height_and_lateral_move_the_table_top_relative_to_the_floor():
+    up = np.array([0.0, -1.0, 0.0])
+    rest = _floor_in_table(MOTORIZED, _q(MOTORIZED)).translation
+    raised = _floor_in_table(MOTORIZED, _q(MOTORIZED, table_height=0.1)).translation
+    assert np.allclose(raised - rest, -0.1 * up, atol=1e-15)  # the floor drops by 0.1 m as seen from the top
+    slid = _floor_in_table(MOTORIZED, _q(MOTORIZED, table_lateral=0.05)).translation
+    assert np.allclose(slid - rest, [-0.05, 0, 0], atol=1e-15)
+
+
+@pytest.mark.parametrize("name, axis", [("table_tilt", [0, 0, 1]), ("table_trendelenburg", [1, 0, 0]),
+                                        ("table_rotation", [0, -1, 0])])
+def test_rotations_turn_the_top_about_their_axis_through_the_pivot(name, axis):
+    placement = _floor_in_table(MOTORIZED, _q(MOTORIZED, **{name: 0.2}))
+    top_in_floor = placement.inverse()
+    assert np.allclose(pin.log3(top_in_floor.rotation), 0.2 * np.array(axis, float), atol=1e-14)
+    pivot = np.array(MOTORIZED.table.joints[0].point)
+    assert np.allclose(top_in_floor.act(pivot), pivot, atol=1e-14)  # the pivot does not move
+
+
+def test_table_joint_validation():
+    with pytest.raises(InvalidParameterError, match="unknown table joint"):
+        standard_joints({"table_yaw": JointRange(-1, 1)}, up=(0, 1, 0), pivot=(0, 0, 0))
+    with pytest.raises(InvalidParameterError, match="unit"):
+        TableJoint("table_height", True, (0, 2, 0), (0, 0, 0), JointRange(-1, 1))
+    with pytest.raises(InvalidParameterError, match="lower limit"):
+        JointRange(0.3, -0.3, "table_tilt")
+
+
+def test_verify_passes_on_the_motorized_preset():
+    from carmkin.robot.verify import verify
+
+    report = verify(MOTORIZED, samples=2000, random_setups=5, seed=3)
+    assert report.worst <= 1e-12
+    assert set(report.position_error) == set(FRAMES)

@@ -1,0 +1,97 @@
+"""Collision scene: the documented pair list, signed distances, and the distance Jacobian."""
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from strategies import PRESET
+
+from carmkin.robot.collision import (
+    CollisionScene,
+    CollisionSceneError,
+    Obstacle,
+    carm_pair_names,
+    link_of,
+)
+
+SOURCE_HOUSING = PRESET.body.source_housing  # box in the source frame, centre at z = -hs_z/2 + 0.03
+
+
+def source_point(q, local):
+    """A point given in the xray_source frame, in the table frame (closed-form FK, not Pinocchio)."""
+    T = PRESET.fk(q)
+    return T[:3, :3] @ np.asarray(local) + T[:3, 3]
+
+
+def test_pair_list_excludes_adjacent_and_irrelevant_pairs():
+    scene = CollisionScene.from_system(PRESET)
+    links = set(scene.link_pairs())
+    for excluded in [("table", "carm_cart"), ("carm_cart", "table"), ("dh_frame_3", "dh_frame_4"),
+                     ("dh_frame_4", "dh_frame_3"), ("dh_frame_2", "carm_cart"), ("dh_frame_2", "floor"),
+                     ("table", "floor")]:
+        assert excluded not in links
+    for moving in ("dh_frame_3", "dh_frame_4", "dh_frame_5", "dh_frame_6", "xray_source", "detector"):
+        assert (moving, "table") in links and (moving, "floor") in links
+    # every C segment and both detector boxes are paired with the table
+    names = {a for a, b in scene.pairs if b == "table_0"}
+    assert {f"dh_frame_6_{k}" for k in range(8)} <= names and {"detector_0", "detector_1"} <= names
+
+
+def test_obstacles_are_paired_with_every_moving_part():
+    box = Obstacle.box("patient", (0.4, 0.25, 1.6), (0.0, -0.1, 0.0))
+    scene = CollisionScene.from_system(PRESET, [box])
+    plain = CollisionScene.from_system(PRESET)
+    moving = {a for a, _ in plain.pairs}
+    assert {a for a, b in scene.pairs if b == "patient"} == moving
+    assert len(scene) == len(plain) + len(moving)
+
+
+def test_link_of():
+    assert link_of("dh_frame_6_7") == "dh_frame_6" and link_of("table_0") == "table" and link_of("patient") == "patient"
+    assert carm_pair_names(["table_0", "carm_cart_0"]) == []
+
+
+@pytest.mark.parametrize("gap", [0.03, 0.005, -0.02])
+def test_signed_distance_to_a_box_beside_the_source_housing(gap):
+    """A 0.1 m cube placed ``gap`` beyond the housing's +X face (negative: overlapping) is at distance gap."""
+    q = np.array([0.1, 0.2, 0.05, 0.1, 0.4, -0.3])
+    hx, _, hz = SOURCE_HOUSING
+    center = source_point(q, [hx / 2 + gap + 0.05, 0.0, -hz / 2 + 0.03])
+    R = PRESET.fk(q)[:3, :3]
+    scene = CollisionScene.from_system(PRESET, [Obstacle.box("probe", (0.1, 0.1, 0.1), center, R)])
+    distances = scene.distances(q=q)
+    k = scene.pairs.index(("xray_source_0", "probe"))
+    assert distances[k] == pytest.approx(gap, abs=1e-5)
+
+
+def test_bad_obstacles_are_rejected():
+    with pytest.raises(CollisionSceneError, match="shape"):
+        Obstacle("x", "cone", (1.0,))
+    with pytest.raises(CollisionSceneError, match="positive"):
+        Obstacle.box("x", (0.1, -0.1, 0.1))
+    with pytest.raises(CollisionSceneError, match="already used"):
+        CollisionScene.from_system(PRESET, [Obstacle.box("table_0", (0.1, 0.1, 0.1))])
+    with pytest.raises(CollisionSceneError, match="no geometry"):
+        model, gm, _ = PRESET.pinocchio()
+        CollisionScene(model, gm, [("table_0", "nonexistent")])
+
+
+@settings(max_examples=40)
+@given(st.lists(st.floats(0.0, 1.0), min_size=6, max_size=6), st.integers(0, 2**31 - 1))
+def test_distance_jacobian_matches_finite_differences(u, seed):
+    """d' = J dq for the near pairs, checked by central differences (box-box distances are only
+    piecewise smooth: a 15 % relative tolerance; a sign or frame error gives 200 %)."""
+    q = PRESET.lower + np.array(u) * (PRESET.upper - PRESET.lower)
+    scene = CollisionScene.from_system(PRESET, [Obstacle.box("patient", (0.4, 0.25, 1.6), (0.0, -0.1, 0.0))])
+    model = scene.model
+    data = model.createData()
+    pin.computeJointJacobians(model, data, q)
+    distances = scene.distances(data)
+    near = scene.proximity(distances, 0.3)
+    rows = scene.distance_jacobian(near, data.J)
+    dq = np.random.default_rng(seed).normal(size=model.nv) * 1e-4
+    fd = (scene.distances(q=q + dq)[near.index] - scene.distances(q=q - dq)[near.index]) / 2
+    pred = rows @ dq
+    scale = np.linalg.norm(rows, axis=1) * np.linalg.norm(dq)
+    assert np.all(np.abs(fd - pred) <= 0.15 * scale + 2e-6)

@@ -1,0 +1,72 @@
+"""Generalised workspace study over table DOFs (issue 9): desired poses, reach per model, CLI."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import carmkin
+from carmkin.commands import workspace as workspace_command
+from carmkin.robot.collision import CollisionScene
+from carmkin.studies import table_workspace as tw
+
+MOTORIZED = carmkin.load_preset("siremobile-iso-c3d-motorized-table")
+
+
+def test_desired_configurations_in_range_collision_free_and_seeded():
+    qs = tw.desired_configurations(MOTORIZED, 12, seed=3)
+    assert qs.shape == (12, MOTORIZED.nq)
+    assert np.all(qs >= MOTORIZED.lower) and np.all(qs <= MOTORIZED.upper)
+    scene = CollisionScene.from_system(MOTORIZED)
+    assert min(scene.distances(q=q).min() for q in qs) >= 0.01
+    assert np.array_equal(qs, tw.desired_configurations(MOTORIZED, 12, seed=3))
+    assert not np.array_equal(qs, tw.desired_configurations(MOTORIZED, 12, seed=4))
+
+
+@settings(max_examples=10)
+@given(st.integers(0, 10_000))
+def test_carm_alone_reaches_poses_of_its_own_configurations(seed):
+    """Poses generated with every table joint at zero are reached by the C-arm alone (5-DOF closed form)."""
+    q = tw.desired_configurations(MOTORIZED, 1, seed=seed)[0]
+    q[:6] = 0.0
+    scene = CollisionScene.from_system(MOTORIZED)
+    if scene.distances(q=q).min() < 0.01:
+        return
+    assert tw.reachable(MOTORIZED, MOTORIZED.fk(q), "none", random_seeds=0)
+
+
+def test_far_pose_is_reachable_by_no_model():
+    """A source 3 m above the C-arm base is out of reach of every model (ranges of ±0.2 m at most)."""
+    T = MOTORIZED.fk(np.zeros(MOTORIZED.nq))
+    T[1, 3] -= 3.0  # Y0 points down
+    for model in tw.MODELS:
+        assert not tw.reachable(MOTORIZED, T, model, random_seeds=1)
+
+
+def test_unknown_model_and_missing_joints_raise():
+    with pytest.raises(tw.TableWorkspaceError):
+        tw.run_study(MOTORIZED, ("floor",), n=1)
+    with pytest.raises(tw.TableWorkspaceError, match="lacks"):
+        tw.reachable(carmkin.load_preset("siremobile-iso-c3d"), np.eye(4), "all")
+    with pytest.raises(tw.TableWorkspaceError):
+        tw.desired_configurations(MOTORIZED, 0)
+
+
+def test_cli_compare_prints_four_rows(capsys, tmp_path):
+    import argparse
+
+    parser = argparse.ArgumentParser()
+    workspace_command.register(parser)
+    args = parser.parse_args(["--table-dofs", "compare", "--poses", "4", "--random-seeds", "1",
+                              "--plot", str(tmp_path / "reach.png"), "--json", str(tmp_path / "reach.json")])
+    assert workspace_command.run(args) == 0
+    out = capsys.readouterr().out
+    for model in tw.MODELS:
+        assert any(line.startswith(model + " ") for line in out.splitlines())
+    assert (tmp_path / "reach.png").stat().st_size > 0
+    import json
+
+    data = json.loads((tmp_path / "reach.json").read_text())
+    assert set(data) == set(tw.MODELS) and all(v["poses"] == 4 for v in data.values())
