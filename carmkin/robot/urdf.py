@@ -8,12 +8,15 @@ which needs no ROS installation.
 from __future__ import annotations
 
 from importlib import resources
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
 
-from carmkin.model.system import CArmSystem
 from carmkin.model.table_joints import xacro_spec
+
+if TYPE_CHECKING:  # for annotations only: the system calls this module, not the other way round
+    from carmkin.model.system import CArmSystem
 
 #: Number of boxes approximating the C's arc.
 C_SEGMENTS = 8
