@@ -1,0 +1,96 @@
+"""The public boundary: user input to finite real numpy arrays, or a typed error naming the argument.
+
+Every public function that takes numbers passes them through :func:`real_array` or :func:`real_scalar`
+once, at the boundary, and trusts them afterwards. What is refused, with a :class:`carmkin.CarmkinError`
+subclass that names the argument, the value and what was expected:
+
+- ``None``, strings, bytes, objects numpy cannot read as numbers (never parsed: ``"1.5"`` is not 1.5);
+- booleans (``True`` is not 1 mm or 1°);
+- complex numbers, even with a zero imaginary part (numpy would cast them with a ``ComplexWarning``);
+- NaN and ±inf (unless ``finite=False``);
+- a wrong shape (``None`` in the expected shape matches any size);
+- magnitudes above ``limit`` (no real C-arm or table is kilometres long).
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from carmkin.errors import CarmkinError, InvalidParameterError
+
+#: Largest magnitude any length (m) or angle (rad) may have anywhere in the toolkit: far beyond any real
+#: C-arm, table or pose, and small enough that squares and products of such numbers stay exact enough
+#: for the 1e-12 checks to mean something.
+MAGNITUDE_LIMIT = 1e3
+
+
+def _describe(value) -> str:
+    text = repr(value)
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
+def _shape_text(shape: Sequence[int | None]) -> str:
+    return "(" + ", ".join("N" if s is None else str(s) for s in shape) + ("," if len(shape) == 1 else "") + ")"
+
+
+def real_array(
+    value,
+    name: str,
+    shape: Sequence[int | None] | None = None,
+    *,
+    error: type[CarmkinError] = InvalidParameterError,
+    finite: bool = True,
+    limit: float | None = MAGNITUDE_LIMIT,
+    unit: str = "",
+) -> np.ndarray:
+    """``value`` as a float64 array of ``shape``, or ``error`` naming ``name`` and what was expected.
+
+    ``unit`` (e.g. ``"m"``, ``"rad"``) is quoted in the message; ``limit`` bounds every element's magnitude
+    (``None``: no bound).
+    """
+    unit_text = f" ({unit})" if unit else ""
+    expected = f"real numbers{unit_text}" + (f" of shape {_shape_text(shape)}" if shape is not None else "")
+    if value is None or isinstance(value, (str, bytes)):
+        raise error(f"{name} must be {expected}, got {_describe(value)}")
+    try:
+        array = np.asarray(value)
+    except (ValueError, TypeError) as exc:  # ragged nesting
+        raise error(f"{name} must be {expected}, got {_describe(value)} ({exc})") from None
+    if array.dtype.kind == "c":
+        raise error(f"{name} must be {expected}, got complex values {_describe(value)}")
+    if array.dtype.kind == "b":
+        raise error(f"{name} must be {expected}, got booleans {_describe(value)}")
+    if array.dtype.kind not in "iuf":
+        raise error(f"{name} must be {expected}, got {_describe(value)} (dtype {array.dtype})")
+    if array.dtype.kind in "iu" and array.size and np.max(np.abs(array.astype(object))) > 2**53:
+        raise error(f"{name} must be {expected}, got integers too large to be exact as floats")
+    array = array.astype(float)
+    if shape is not None and (
+        array.ndim != len(shape) or any(s is not None and s != n for s, n in zip(shape, array.shape))
+    ):
+        raise error(f"{name} must be {expected}, got shape {array.shape}")
+    if finite and not np.all(np.isfinite(array)):
+        raise error(f"{name} must be finite {expected}, got {_describe(value)}")
+    if limit is not None and array.size and np.max(np.abs(np.nan_to_num(array, posinf=0.0, neginf=0.0))) > limit:
+        raise error(f"{name} must be {expected} within ±{limit:g}{unit_text}, got {_describe(value)}")
+    return array
+
+
+def real_scalar(
+    value,
+    name: str,
+    *,
+    error: type[CarmkinError] = InvalidParameterError,
+    low: float | None = None,
+    high: float | None = None,
+    limit: float | None = MAGNITUDE_LIMIT,
+    unit: str = "",
+) -> float:
+    """``value`` as a float within [``low``, ``high``] (either may be ``None``), or ``error`` naming ``name``."""
+    number = float(real_array(value, name, (), error=error, limit=limit, unit=unit))
+    if (low is not None and number < low) or (high is not None and number > high):
+        bounds = f"[{'-inf' if low is None else f'{low:g}'}, {'inf' if high is None else f'{high:g}'}]"
+        raise error(f"{name} must be within {bounds}{f' {unit}' if unit else ''}, got {number:g}")
+    return number
