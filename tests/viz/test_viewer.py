@@ -38,7 +38,8 @@ from hypothesis import given, settings
 from strategies import PRESET, configurations, systems
 
 from carmkin.cli import main
-from carmkin.commands.view import parse_configuration
+from carmkin.commands._common import parse_joints
+from carmkin.robot.collision import CARM_EXCLUDED_PAIRS, CollisionScene, link_of
 from carmkin.errors import InvalidConfigurationError, InvalidPoseError
 
 # RGB of the xacro materials (urdf/carm_table.urdf.xacro), typed here from the file, not from carmkin.viz.
@@ -133,14 +134,14 @@ def is_loopback(address: str) -> bool:
 
 # --- parsing and inputs -------------------------------------------------------------------------------
 def test_parse_configuration_converts_mm_and_degrees():
-    q = parse_configuration("100, 250, -5, 150, 90, -45", "--q")
+    q = parse_joints("100, 250, -5, 150, 90, -45", PRESET, "--q")
     np.testing.assert_allclose(q, [0.1, 0.25, -np.pi / 36, 0.15, np.pi / 2, -np.pi / 4], rtol=0, atol=1e-15)
 
 
 @pytest.mark.parametrize("text", ["1,2,3", "1,2,3,4,5,6,7", "0,0,x,0,0,0", "0,0,nan,0,0,0"])
 def test_parse_configuration_rejects_bad_text(text):
     with pytest.raises(InvalidConfigurationError, match="--q"):
-        parse_configuration(text, "--q")
+        parse_joints(text, PRESET, "--q")
 
 
 def test_viewer_rejects_configuration_outside_the_limits():
@@ -275,11 +276,17 @@ def test_animation_tracks_run_from_start_to_target_and_come_after_the_objects():
 
 
 # --- distances ----------------------------------------------------------------------------------------
-def test_distance_pairs_are_carm_parts_against_table_and_floor():
+def test_distance_pairs_are_the_collision_policy():
+    """One policy: the viewer colours exactly the pairs the planner and the validity report check."""
     checker = DistanceChecker(PRESET)
-    pairs = {(d.part, d.obstacle) for d in checker.distances(Q_MID)}
-    parts = {g.name for g in checker.collision_model.geometryObjects} - {"table_0", "floor_0"}
-    assert pairs == {(p, o) for p in parts for o in ("table_0", "floor_0")} - {("carm_cart_0", "floor_0")}
+    pairs = [(d.part, d.obstacle) for d in checker.distances(Q_MID)]
+    assert pairs == list(CollisionScene.from_system(PRESET).pairs)
+    # and that policy, written out: moving C-arm parts against the table top and the floor
+    moving = {"dh_frame_2", "dh_frame_3", "dh_frame_4", "dh_frame_5", "dh_frame_6", "xray_source", "detector"}
+    parts = {g.name for g in checker.collision_model.geometryObjects if link_of(g.name) in moving}
+    expected = {(p, o) for p in parts for o in ("table_0", "floor_0")}
+    expected -= {(p, o) for p, o in expected if (link_of(p), link_of(o)) in set(CARM_EXCLUDED_PAIRS)}
+    assert set(pairs) == expected and ("dh_frame_2_0", "floor_0") not in expected
 
 
 @settings(max_examples=25)
