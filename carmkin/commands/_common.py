@@ -204,32 +204,35 @@ def integer(minimum: int | None = None, maximum: int | None = None):
         except ValueError:
             raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
         if (minimum is not None and value < minimum) or (maximum is not None and value > maximum):
-            raise argparse.ArgumentTypeError(f"expected an integer {_bounds(minimum, maximum, False)}, got {value}")
+            raise argparse.ArgumentTypeError(f"expected an integer {_bounds(minimum, maximum)}, got {value}")
         return value
     parse.__name__ = "integer"
     return parse
 
 
 def number(minimum: float | None = None, maximum: float | None = None, open_minimum: bool = False,
-           unit: str = ""):
-    """argparse type: a finite number in ``[minimum, maximum]`` (``(minimum, ...`` with ``open_minimum``)."""
+           open_maximum: bool = False, unit: str = ""):
+    """argparse type: a finite number in ``[minimum, maximum]``; ``open_minimum``/``open_maximum`` exclude the
+    bound itself."""
     def parse(text: str) -> float:
         try:
             value = float(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"expected a number{_unit(unit)}, got {text!r}") from None
         too_low = minimum is not None and (value <= minimum if open_minimum else value < minimum)
-        if not math.isfinite(value) or too_low or (maximum is not None and value > maximum):
-            raise argparse.ArgumentTypeError(
-                f"expected a finite number {_bounds(minimum, maximum, open_minimum)}{_unit(unit)}, got {text}")
+        too_high = maximum is not None and (value >= maximum if open_maximum else value > maximum)
+        if not math.isfinite(value) or too_low or too_high:
+            raise argparse.ArgumentTypeError(f"expected a finite number "
+                                             f"{_bounds(minimum, maximum, open_minimum, open_maximum)}{_unit(unit)}, "
+                                             f"got {text}")
         return value
     parse.__name__ = "number"
     return parse
 
 
-def _bounds(minimum, maximum, open_minimum: bool) -> str:
+def _bounds(minimum, maximum, open_minimum: bool = False, open_maximum: bool = False) -> str:
     low = None if minimum is None else f"{'>' if open_minimum else '>='} {minimum:g}"
-    high = None if maximum is None else f"<= {maximum:g}"
+    high = None if maximum is None else f"{'<' if open_maximum else '<='} {maximum:g}"
     return " and ".join(b for b in (low, high) if b) or "(any)"
 
 

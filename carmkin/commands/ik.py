@@ -21,8 +21,6 @@ from __future__ import annotations
 import argparse
 import json
 
-import numpy as np
-
 from ._common import (
     JOINTS_METAVAR,
     MM_PER_M,
