@@ -100,11 +100,11 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps({"preset": system.name, "chosen": result.chosen, "valid": bool(result.valid),
                           "det_j": result.det_j, "branches": branches}, indent=2))
         return 0 if result.valid else 1
-    print(f"preset {system.name}; det J = {result.det_j:.4g}")
+    print(f"preset {system.name}; det J = {result.det_j:.4g}; branches (* = chosen):")
     for k, (solution, b) in enumerate(zip(result.solutions, branches)):
         mark = "*" if k == result.chosen else " "
         excess = ", ".join(f"{n} {v:+.4f}" for n, v in b["excess"].items())
-        print(f"{mark}{k} (branch {k}): {b['status']}{' (numerical)' if b['numerical'] else ''}"
+        print(f"{mark}{k}  {b['status']}{' (numerical)' if b['numerical'] else ''}"
               f"{'; excess ' + excess if excess else ''}")
         print(f"    joints: {format_joints(system, solution, digits=4)}")
         v = b["validity"]

@@ -16,6 +16,7 @@ import threading
 import time
 import urllib.request
 
+import carmkin
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -35,6 +36,7 @@ from carmkin.viz import (
 from carmkin.viz.distances import distance_color
 from carmkin.viz.shapes import cone_vertices
 from hypothesis import given, settings
+from hypothesis import strategies as st
 from strategies import PRESET, configurations, systems
 
 from carmkin.cli import main
@@ -212,6 +214,24 @@ def test_display_puts_cone_and_source_triad_at_the_closed_form_source_pose(q):
     viewer.display(q)
     np.testing.assert_allclose(node_transform(viewer, "carmkin/cone"), PRESET.fk(q), atol=1e-9)
     np.testing.assert_allclose(node_transform(viewer, "carmkin/frames/xray_source"), PRESET.fk(q), atol=1e-9)
+
+
+MOTORIZED = carmkin.load_preset("siremobile-iso-c3d-motorized-table")
+
+
+@settings(max_examples=10)
+@given(data=st.data())
+def test_viewer_is_general_in_the_number_of_joints(data):
+    """On the 11-joint motorized preset: cone at the closed-form source pose, ghost, move of (frames, 11)."""
+    q, q_to = (np.array([data.draw(st.floats(r.lower, r.upper)) for r in MOTORIZED.joint_ranges]) for _ in range(2))
+    viewer = CArmViewer(MOTORIZED, q=q)
+    np.testing.assert_allclose(node_transform(viewer, "carmkin/cone"), MOTORIZED.fk(q), atol=1e-9)
+    viewer.show_ghost(q_to)
+    np.testing.assert_allclose(node_transform(viewer, "carmkin/ghost/cone"), MOTORIZED.fk(q_to), atol=1e-9)
+    assert viewer.animate(q_to, frames=3).shape == (3, 11)
+    np.testing.assert_allclose(node_transform(viewer, "carmkin/cone"), MOTORIZED.fk(q_to), atol=1e-9)
+    pairs = viewer.show_distances(q)
+    assert [(d.part, d.obstacle) for d in pairs] == list(CollisionScene.from_system(MOTORIZED).pairs)
 
 
 def test_scene_frame_is_upright_table_frame():
