@@ -62,17 +62,16 @@ def register(parser: argparse.ArgumentParser) -> None:
                         help="stop serving after this many seconds (default: until Ctrl-C)")
 
 
-def _draw(viewer, args) -> None:
+def _draw(viewer, args, q_target, T_target) -> None:
     """Distances at the current configuration, target pose, ghost and move, as the flags ask."""
     distances = viewer.show_distances(margin=args.margin_mm / MM_PER_M)
     for obstacle in sorted({d.obstacle for d in distances}):
         closest = min((d for d in distances if d.obstacle == obstacle), key=lambda d: d.distance)
         state = "COLLISION" if closest.in_collision else "clear"
         print(f"closest to {obstacle}: {closest.part} at {closest.distance * MM_PER_M:.1f} mm ({state})")
-    if args.target_pose:
-        viewer.show_target_pose(read_pose(args.target_pose, "--target-pose"))
-    if args.target:
-        q_target = parse_joints(args.target, viewer.system, "--target")
+    if T_target is not None:
+        viewer.show_target_pose(T_target)
+    if q_target is not None:
         viewer.show_ghost(q_target)
         if not args.no_animate:
             viewer.animate(q_target, frames=args.frames, fps=args.fps)
@@ -94,7 +93,7 @@ def _write_static(viewer, args) -> None:
         print(f"wrote {screenshot(page, args.png)}")
 
 
-def _serve(system, args, q) -> None:
+def _serve(system, args, q, q_target, T_target) -> None:
     from carmkin.viz import CArmViewer, LoopbackServer
 
     stop = threading.Event()
@@ -102,7 +101,7 @@ def _serve(system, args, q) -> None:
     try:
         with LoopbackServer(port=args.port) as server:
             viewer = CArmViewer(system, server.visualizer(), q)
-            _draw(viewer, args)
+            _draw(viewer, args, q_target, T_target)
             print(f"meshcat viewer: {server.web_url}  (listening on 127.0.0.1 only; Ctrl-C to stop)", flush=True)
             try:
                 stop.wait(args.serve_seconds)
@@ -117,16 +116,18 @@ def run(args: argparse.Namespace) -> int:
     from carmkin.viz import CArmViewer
 
     system = system_from_args(args)
-    q = parse_joints(args.q, system, "--q") if args.q else None
+    q = parse_joints(args.q, system, "--q") if args.q else None  # every input checked before any work
+    q_target = parse_joints(args.target, system, "--target") if args.target else None
+    T_target = read_pose(args.target_pose, "--target-pose") if args.target_pose else None
     if args.html:
         args.html = output_path(args.html, "--html", ("html", "htm"))
     if args.png:
         args.png = output_path(args.png, "--png", ("png",))
     if args.html or args.png:
         viewer = CArmViewer(system, q=q)
-        _draw(viewer, args)
+        _draw(viewer, args, q_target, T_target)
         _write_static(viewer, args)
     else:
-        _serve(system, args, q)
+        _serve(system, args, q, q_target, T_target)
     sys.stdout.flush()
     return 0
