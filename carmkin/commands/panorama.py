@@ -9,6 +9,9 @@ range (Siremobile preset: wigwag/angular/orbital 0°, table translation 0, verti
   carmkin panorama map --out map.png                  validity of a grid of principal points (PNG)
   carmkin panorama parallax --length-mm 400           stitch a 3-plane marker phantom: parallax (px)
 
+shot and plan take --html FILE: a self-contained viewer page (open it in a browser) with the C-arm at the
+reference configuration, a cone at every shot's target pose, and the last valid shot as a ghost.
+
 Joint values (--reference-q-mm-deg: one per joint of the preset) and moves print in mm for prismatic
 joints and degrees for revolute joints. Δd0 is the C-arm's motion
 relative to the table along Z0: the table itself moves by −Δd0.
@@ -29,6 +32,7 @@ from ._common import (
     format_joints,
     integer,
     number,
+    output_path,
     parse_joints,
     parse_numbers,
     plot_path,
@@ -64,9 +68,11 @@ def register(parser: argparse.ArgumentParser) -> None:
     shot = sub.add_parser("shot", help="plan one shot from its principal point (Table 4.3)")
     _add_common(shot)
     shot.add_argument("--principal-point", required=True, metavar="U,V", help="principal point (px)")
+    _add_html(shot)
     plan = sub.add_parser("plan", help="shots covering a length with a given overlap")
     _add_common(plan)
     _add_line(plan)
+    _add_html(plan)
     vmap = sub.add_parser("map", help="validity map of principal points, saved as a PNG")
     _add_common(vmap)
     vmap.add_argument("--range-px", metavar="UMIN,UMAX,VMIN,VMAX",
@@ -84,6 +90,24 @@ def register(parser: argparse.ArgumentParser) -> None:
                      help="pose noise levels σ (mm, deg), separated by ';' (default '0.1,0;1,0;0,0.1;0,1;1,1')")
     par.add_argument("--trials", type=integer(1), default=50, help="noise trials per level (default 50)")
     par.add_argument("--seed", type=integer(0), default=0, help="random seed (default 0)")
+
+
+def _add_html(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--html", metavar="FILE", help="also write the shots into a viewer page (.html) to open in "
+                        "a browser: cones at the shots' poses, the last valid shot as a ghost")
+
+
+def _write_html(system, planner, shots, path) -> None:
+    """The viewer page of ``shots``: the C-arm at the reference, cones at the targets, the last valid shot's ghost."""
+    from carmkin.viz import CArmViewer
+
+    viewer = CArmViewer(system, q=planner.q_reference)
+    viewer.draw_shots(np.array([shot.target for shot in shots]))
+    valid = [shot for shot in shots if shot.valid]
+    if valid:
+        viewer.show_ghost(valid[-1].q)
+    viewer.save_html(path)
+    print(f"wrote {path}")
 
 
 def _planner(system, args):
@@ -148,16 +172,22 @@ def run(args: argparse.Namespace) -> int:
     system = system_from_args(args)
     if args.panorama_command == "map":
         args.out = plot_path(args.out, "--out")
+    html = getattr(args, "html", None)
+    html = None if html is None else output_path(html, "--html", ("html", "htm"))
     planner = _planner(system, args)
     print(f"preset {system.name}; reference: {_joints(system, planner.q_reference)}")
     if args.panorama_command == "shot":
         u, v = parse_numbers(args.principal_point, 2, "--principal-point")
         shot = planner.shot((u, v))
         _print_shot(system, shot)
+        if html is not None:
+            _write_html(system, planner, [shot], html)
         return 0 if shot.valid else 1
     if args.panorama_command == "plan":
         plan = planner.plan(*_line_args(planner, args))
         _print_plan(system, plan)
+        if html is not None:
+            _write_html(system, planner, plan.shots, html)
         return 0 if plan.valid else 1
     if args.panorama_command == "map":
         return _run_map(system, planner, args)

@@ -343,3 +343,20 @@ def test_help_texts_name_the_library_choices():
 
 def test_usage_error_is_a_carmkin_error():
     assert issubclass(UsageError, carmkin.CarmkinError) and issubclass(_common.NotApplicableError, UsageError)
+
+
+def test_a_panorama_plan_opens_in_the_browser(tmp_path, capsys):
+    """`panorama plan --html`: a viewer page with one cone per shot, placed at the shot's target pose."""
+    import base64
+    import re
+
+    import umsgpack
+
+    page = tmp_path / "new" / "plan.html"
+    code, out, err = cli(["panorama", "plan", "--length-mm", "200", "--html", page], capsys)
+    assert code == 0 and f"wrote {page}" in out, err
+    commands = [umsgpack.unpackb(base64.b64decode(b))
+                for b in re.findall(r'data:application/octet-binary;base64,([A-Za-z0-9+/=]+)"', page.read_text())]
+    cones = {c["path"] for c in commands if c["type"] == "set_transform" and "/shots/planned/" in c["path"]}
+    shots = int(re.search(r"(\d+) shots", out).group(1))
+    assert len(cones) == shots >= 2
