@@ -24,6 +24,8 @@ import sys
 
 from ._common import (
     DEFAULT_PRESET,
+    MM_PER_M,
+    UsageError,
     add_preset_argument,
     integer,
     number,
@@ -114,6 +116,11 @@ def run(args: argparse.Namespace) -> int:
 
     system = system_from_args(args)
     translations = workspace.PAPER_GRID.translations_mm if args.translations_mm is None else args.translations_mm
+    d0 = system.joint_ranges[0]
+    for value in translations:
+        if d0.excess(value / MM_PER_M) != 0.0:
+            raise UsageError(f"--translations-mm {value:g} is outside the table translation range "
+                             f"[{d0.lower * MM_PER_M:g}, {d0.upper * MM_PER_M:g}] mm of preset {system.name!r}")
     grid = workspace.StudyGrid(translations_mm=tuple(translations))
     n = len(grid.configurations()) * len(grid.translations_mm)
     with tqdm(total=n, unit="pose", desc="workspace", leave=False, file=sys.stderr) as bar:

@@ -360,3 +360,15 @@ def test_a_panorama_plan_opens_in_the_browser(tmp_path, capsys):
     cones = {c["path"] for c in commands if c["type"] == "set_transform" and "/shots/planned/" in c["path"]}
     shots = int(re.search(r"(\d+) shots", out).group(1))
     assert len(cones) == shots >= 2
+
+
+def test_nonsense_inputs_are_refused_in_one_line(tmp_path, capsys):
+    broken = tmp_path / "broken.toml"
+    broken.write_text("a = [")
+    cases = ((["urdf", "--preset", broken], ["--preset", "not valid TOML"]),
+             (["urdf", "--preset", tmp_path / "none.toml"], ["--preset", "no such preset file"]),
+             (["workspace", "--translations-mm", "5000"], ["--translations-mm 5000", "table translation range", "mm"]))
+    for argv, words in cases:
+        code, out, err = cli(argv, capsys)
+        assert code == 2 and out == ""
+        assert_one_line_error(err, *words)
