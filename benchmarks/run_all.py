@@ -1,4 +1,8 @@
-"""Run every benchmark in this folder one after the other: python benchmarks/run_all.py [--quick]."""
+"""Run every benchmark in this folder one after the other: python benchmarks/run_all.py [--quick].
+
+Every ``bench_*.py`` is run, e.g. bench_fk, bench_ik, bench_qp_ik, bench_table_ik, bench_workspace and
+bench_import (start-up time of ``import carmkin`` and ``carmkin --help`` against ``import numpy``).
+"""
 
 from __future__ import annotations
 

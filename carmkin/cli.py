@@ -1,13 +1,21 @@
 """The ``carmkin`` command line. Each subcommand lives in its own module of :mod:`carmkin.commands`.
 
 A command module defines ``HELP`` (one line), ``register(parser)`` to add its arguments and
-``run(args) -> int`` returning the exit code. Units on the command line are mm and degrees.
+``run(args) -> int`` returning the exit code. Units on the command line are mm and degrees. Command modules
+import only numpy and carmkin's light public face at module level, so that ``carmkin --help`` is fast; the
+heavy libraries load inside ``run``.
+
+Exit codes: 0 success; 1 a check or plan that was run failed (``verify`` FAIL, an invalid plan, ...);
+2 a usage error, an input the command cannot use, an output that cannot be written, or a command that does
+not apply to the system (one line on stderr naming the option); 3 an internal error (one line; set
+``CARMKIN_DEBUG=1`` for the traceback); 130 interrupted.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import pkgutil
 import sys
 
@@ -17,6 +25,18 @@ from . import commands
 
 #: Order in which the subcommands are listed by ``--help``; modules not named here come last.
 ORDER = ("verify", "ik", "urdf", "workspace", "singularity", "panorama", "view")
+USAGE_ERROR, INTERNAL_ERROR, INTERRUPTED = 2, 3, 130
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """An ArgumentParser whose usage errors are one line (``carmkin view: error: argument --q: ...``), exit 2."""
+
+    def error(self, message: str):
+        self.exit(USAGE_ERROR, f"{self.prog}: error: {_one_line(message)} (see {self.prog} --help)\n")
+
+
+def _one_line(text: object) -> str:
+    return " ".join(str(text).split())
 
 
 def _command_modules():
@@ -26,12 +46,13 @@ def _command_modules():
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="carmkin",
-        description="Kinematics of a mobile X-ray C-arm + operating table (6-DOF chain). "
+        description="Kinematics of a mobile X-ray C-arm + operating table as one chain. "
         "Lengths on the command line are in mm, angles in degrees.",
+        epilog="exit codes: 0 ok, 1 a check failed, 2 usage error or unusable input, 3 internal error",
     )
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=OneLineParser)
     for name, module in _command_modules():
         command = sub.add_parser(name, help=module.HELP, description=module.__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -42,11 +63,25 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    prefix = f"carmkin {args.command}: error:"
     try:
         return int(args.run(args) or 0)
     except CarmkinError as exc:
-        print(f"carmkin {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+        print(f"{prefix} {_one_line(exc)}", file=sys.stderr)
+        return USAGE_ERROR
+    except OSError as exc:  # a file that cannot be read or written
+        where = f" {exc.filename}" if exc.filename else ""
+        print(f"{prefix} cannot access{where}: {exc.strerror or _one_line(exc)}", file=sys.stderr)
+        return USAGE_ERROR
+    except KeyboardInterrupt:
+        print(f"carmkin {args.command}: interrupted", file=sys.stderr)
+        return INTERRUPTED
+    except Exception as exc:  # a bug: still one line for the user, the traceback on request
+        if os.environ.get("CARMKIN_DEBUG"):
+            raise
+        print(f"carmkin {args.command}: internal error: {type(exc).__name__}: {_one_line(exc)} "
+              "(set CARMKIN_DEBUG=1 for the traceback and please report it)", file=sys.stderr)
+        return INTERNAL_ERROR
 
 
 if __name__ == "__main__":  # pragma: no cover

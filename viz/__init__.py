@@ -6,7 +6,7 @@
 - :func:`screenshot`: render a page to PNG with headless Chromium.
 """
 
-from .distances import DistanceChecker, PairDistance, collision_pairs
+from .distances import DistanceChecker, PairDistance
 from .errors import BrowserNotFoundError, ServerError, VisualizationError
 from .screenshot import find_chromium, screenshot
 from .server import LoopbackServer
@@ -23,7 +23,6 @@ __all__ = [
     "ServerError",
     "VisualizationError",
     "check_configuration",
-    "collision_pairs",
     "find_chromium",
     "interpolate",
     "offline_visualizer",

@@ -1,9 +1,9 @@
-"""Distances between the C-arm and its surroundings, for colouring the viewer (coal via Pinocchio).
+"""Distances between the C-arm and its surroundings, for colouring the viewer.
 
-Pair selection (kept simple on purpose): every collision geometry of a C-arm link (every link except
-``table`` and ``floor``) against the table top (link ``table``) and against the ``floor``, except the cart
-against the floor it stands on. C-arm parts are not checked against each other. This module is
-for display only; planning code should use :mod:`carmkin.robot.collision`.
+The pairs are those of :mod:`carmkin.robot.collision` (:meth:`CollisionScene.from_system`: every moving C-arm
+part against the table top and the floor, the column against the floor left out), the same pairs the
+planner and the §4.4.3 validity report use: what the screen paints red is what validity calls a collision.
+Signed distances (coal through Pinocchio), metres, witness points in the table frame 0.
 """
 
 from __future__ import annotations
@@ -14,12 +14,9 @@ import numpy as np
 import pinocchio as pin
 
 from carmkin.errors import InvalidConfigurationError
+from carmkin.model.kinematics import check_configuration
 from carmkin.model.system import CArmSystem
-
-#: Links the C-arm is checked against.
-OBSTACLE_LINKS = ("table", "floor")
-#: (C-arm link, obstacle link) pairs left out: the cart stands on the floor.
-EXCLUDED = (("carm_cart", "floor"),)
+from carmkin.robot.collision import CollisionScene
 
 
 @dataclass(frozen=True)
@@ -43,38 +40,35 @@ class PairDistance:
         return self.distance <= 0.0
 
 
-def collision_pairs(model: pin.Model, collision_model: pin.GeometryModel) -> list[tuple[int, int]]:
-    """Indices ``(part, obstacle)`` of the geometry pairs checked (see the module docstring)."""
-    link = [model.frames[g.parentFrame].name for g in collision_model.geometryObjects]
-    parts = [i for i, name in enumerate(link) if name not in OBSTACLE_LINKS]
-    obstacles = [i for i, name in enumerate(link) if name in OBSTACLE_LINKS]
-    return [(p, o) for o in obstacles for p in parts if (link[p], link[o]) not in EXCLUDED]
-
-
 class DistanceChecker:
-    """Signed distances of the C-arm parts to the table top and the floor (table frame, metres)."""
+    """Signed distances of the C-arm parts to the table top and the floor (table frame, metres).
+
+    ``scene`` is the :class:`~carmkin.robot.collision.CollisionScene` of the system; ``collision_model`` and
+    ``collision_data`` are its geometry model and data, placed at the configuration of the last call.
+    """
 
     def __init__(self, system: CArmSystem) -> None:
-        model, collision_model, _ = system.pinocchio()
-        self.model = model
-        self.collision_model = collision_model.copy()  # the system's models are shared and read-only
-        for part, obstacle in collision_pairs(model, self.collision_model):
-            self.collision_model.addCollisionPair(pin.CollisionPair(part, obstacle))
-        self.data = model.createData()
-        self.collision_data = pin.GeometryData(self.collision_model)
+        self.scene = CollisionScene.from_system(system)
+        self.model = self.scene.model
+        self.collision_model = self.scene.geometry_model
+        self.collision_data = self.scene.geometry_data
+        self._data = self.model.createData()  # reused by every call given q
 
-    def distances(self, q) -> list[PairDistance]:
-        """All pair distances at configuration ``q`` (6,) (m, rad), in the order of the pairs."""
-        q = np.asarray(q, dtype=float)
-        if q.shape != (self.model.nq,) or not np.all(np.isfinite(q)):
-            raise InvalidConfigurationError(f"q must be {self.model.nq} finite numbers, got {q!r}")
-        pin.computeDistances(self.model, self.data, self.collision_model, self.collision_data, q)
-        names = [g.name for g in self.collision_model.geometryObjects]
-        out = []
-        for pair, result in zip(self.collision_model.collisionPairs, self.collision_data.distanceResults):
-            out.append(PairDistance(names[pair.first], names[pair.second], float(result.min_distance),
-                                    np.array(result.getNearestPoint1()), np.array(result.getNearestPoint2())))
-        return out
+    def distances(self, q=None, *, data: pin.Data | None = None) -> list[PairDistance]:
+        """All pair distances, in pair order, at configuration ``q`` (nq,) (m, rad), or at the configuration
+        whose forward kinematics is already in ``data`` (no second FK)."""
+        if (q is None) == (data is None):
+            raise InvalidConfigurationError("DistanceChecker.distances takes q or data, exactly one of them")
+        if data is None:
+            q = check_configuration(q, self.model.nq)
+            if q.ndim != 1:
+                raise InvalidConfigurationError(f"q must have shape ({self.model.nq},), got {q.shape}")
+            data = self._data
+            pin.forwardKinematics(self.model, data, q)
+        distances = self.scene.distances(data)
+        near = self.scene.proximity(distances, np.inf)  # witness points of every pair
+        return [PairDistance(a, b, float(d), p1, p2)
+                for (a, b), d, p1, p2 in zip(self.scene.pairs, distances, near.point1, near.point2)]
 
 
 def distance_color(distance: float, margin: float) -> tuple[float, float, float]:

@@ -10,15 +10,6 @@ import numpy as np
 
 from carmkin.model.params import CArmGeometry
 
-#: RGB of the xacro materials (``urdf/carm_table.urdf.xacro``), 0..1.
-MATERIALS = {
-    "table_grey": (0.55, 0.6, 0.68),
-    "carm_white": (0.86, 0.88, 0.92),
-    "carm_blue": (0.25, 0.45, 0.8),
-    "source_orange": (0.95, 0.55, 0.15),
-    "detector_dark": (0.2, 0.22, 0.26),
-    "floor_grey": (0.75, 0.75, 0.72),
-}
 #: Colour of the X-ray cone (translucent yellow) and of the ghost copies (translucent cyan).
 CONE_RGB = (1.0, 0.85, 0.2)
 GHOST_RGB = (0.3, 0.85, 0.95)

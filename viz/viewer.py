@@ -24,6 +24,7 @@ from meshcat.animation import Animation
 from pinocchio.visualize import MeshcatVisualizer
 
 from carmkin.errors import InvalidConfigurationError
+from carmkin.model import kinematics
 from carmkin.model.system import CArmSystem
 from carmkin.transforms import check_rigid_transform
 
@@ -40,21 +41,27 @@ NOT_IN_GHOST = ("table", "floor")
 
 
 def check_configuration(system: CArmSystem, q, name: str = "q") -> np.ndarray:
-    """``q`` as a (6,) float array; :class:`InvalidConfigurationError` naming the joint if out of range."""
-    q = np.asarray(q, dtype=float)
-    if q.shape != (6,) or not np.all(np.isfinite(q)):
-        raise InvalidConfigurationError(f"{name} must be 6 finite numbers (m, rad), got {q!r}")
-    for value, joint_range in zip(q, system.joint_ranges):
+    """``q`` as a (nq,) float array; :class:`InvalidConfigurationError` naming the joint if out of its range.
+
+    A value on a limit is in range; nothing is clipped. Messages in m (prismatic) or rad and degrees.
+    """
+    q = kinematics.check_configuration(q, system.nq, name)
+    if q.ndim != 1:
+        raise InvalidConfigurationError(f"{name} must be one configuration of shape ({system.nq},), got {q.shape}")
+    for value, joint_name, joint_range, prismatic in zip(q, system.joint_names, system.joint_ranges,
+                                                         system.prismatic):
         excess = float(joint_range.excess(value))
         if excess != 0.0:
+            unit = "m" if prismatic else "rad"
+            degrees = "" if prismatic else f" ({np.degrees(value):.4g}°)"
             raise InvalidConfigurationError(
-                f"{name}: {joint_range.name} = {value:.6g} is outside [{joint_range.lower:.6g}, "
-                f"{joint_range.upper:.6g}] by {excess:+.3g}")
+                f"{name}: {joint_name} = {value:.6g} {unit}{degrees} is outside [{joint_range.lower:.6g}, "
+                f"{joint_range.upper:.6g}] {unit} by {excess:+.3g} {unit}")
     return q
 
 
 def interpolate(q_from, q_to, frames: int) -> np.ndarray:
-    """(frames, 6) configurations from ``q_from`` to ``q_to``, linear in joint space, both ends included."""
+    """(frames, nq) configurations from ``q_from`` to ``q_to``, linear in joint space, both ends included."""
     if frames < 2:
         raise InvalidConfigurationError(f"a move needs at least 2 frames, got {frames}")
     s = np.linspace(0.0, 1.0, frames)[:, None]
@@ -78,11 +85,13 @@ class CArmViewer:
         model, collision_model, visual_model = system.pinocchio()
         self.model = model
         self.robot = self._load_robot(f"{ROOT}/robot", collision_model, visual_model, color=None)
+        self.data = self.robot.data  # the one kinematic state of the displayed q: robot, cone, triad, distances
+        self._scratch = model.createData()  # for configurations that are not displayed (ghost cone, distances)
         self._ghost: MeshcatVisualizer | None = None
         self._distances: DistanceChecker | None = None
         self.q = check_configuration(system, (system.lower + system.upper) / 2 if q is None else q)
         self.scene_in_world = np.eye(4)  # constant rotation, see the module docstring
-        self.scene_in_world[:3, :3] = self._frame_pose(np.zeros(6), "carm_cart")[:3, :3].T
+        self.scene_in_world[:3, :3] = self._frame_pose(pin.neutral(model), "carm_cart", self._scratch)[:3, :3].T
         self.root.set_transform(self.scene_in_world)
         self._draw_cone(self.root["cone"], shapes.CONE_RGB, 0.3)
         self._draw_triad(self.root["frames/table"], np.eye(4), 0.3)
@@ -92,10 +101,10 @@ class CArmViewer:
 
     # --- current configuration ------------------------------------------------------------------------
     def display(self, q) -> None:
-        """Move the robot, the cone and the source triad to ``q`` (6,) (m, rad)."""
+        """Move the robot, the cone and the source triad to ``q`` (nq,) (m, rad): one forward kinematics pass."""
         self.q = check_configuration(self.system, q)
-        self.robot.display(self.q)
-        source = self._frame_pose(self.q, "xray_source")
+        source = self._frame_pose(self.q, "xray_source", self.data)
+        self.robot.display()  # places the visuals from self.data, no second FK
         self.root["cone"].set_transform(source)
         self.root["frames/xray_source"].set_transform(source)
 
@@ -107,9 +116,12 @@ class CArmViewer:
             if self._ghost is None:
                 self._ghost = self._load_robot(f"{ROOT}/ghost/robot", None, self._ghost_model(),
                                                color=[*shapes.GHOST_RGB, 0.3])
-            self._ghost.display(q_target)
+        data = self._ghost.data if show_robot else self._scratch
+        source = self._frame_pose(q_target, "xray_source", data)
+        if show_robot:
+            self._ghost.display()
         self._draw_cone(self.root["ghost/cone"], shapes.GHOST_RGB, 0.2)
-        self.root["ghost/cone"].set_transform(self._frame_pose(q_target, "xray_source"))
+        self.root["ghost/cone"].set_transform(source)
 
     def show_target_pose(self, T_source, name: str = "target") -> None:
         """A translucent source housing and cone at ``T_source`` (4x4 pose of ``xray_source``, table frame, m)."""
@@ -144,21 +156,23 @@ class CArmViewer:
         Each close part gets a translucent overlay, red when in collision (distance <= 0) through orange to
         yellow at ``margin``, and a line between the nearest points. Returns all pair distances.
         """
-        q = self.q if q is None else check_configuration(self.system, q)
         if not margin > 0:
             raise VisualizationError(f"margin must be > 0 m, got {margin}")
         if self._distances is None:
             self._distances = DistanceChecker(self.system)
         checker = self._distances
-        pairs = checker.distances(q)
+        if q is None:  # the displayed configuration: its kinematics is in self.data already
+            pairs = checker.distances(data=self.data)
+        else:
+            pin.forwardKinematics(self.model, self._scratch, check_configuration(self.system, q))
+            pairs = checker.distances(data=self._scratch)
         node = self.root["distances"]
         node.delete()
         closest: dict[str, PairDistance] = {}
         for pair in pairs:
             if pair.distance < margin and (pair.part not in closest or pair.distance < closest[pair.part].distance):
                 closest[pair.part] = pair
-        geometry_data = pin.GeometryData(checker.collision_model)
-        pin.updateGeometryPlacements(checker.model, checker.data, checker.collision_model, geometry_data, q)
+        geometry_data = checker.collision_data  # placed at this configuration by checker.distances
         for part, pair in closest.items():
             gid = checker.collision_model.getGeometryId(part)
             color = shapes.hex_color(distance_color(pair.distance, margin))
@@ -178,7 +192,7 @@ class CArmViewer:
         Sends one meshcat animation (robot, cone, source triad) that the browser plays by itself, with
         play/pause/scrub controls in its "Animations" panel: nothing waits for a browser. The robot ends at
         ``q_to``. The distance overlay belongs to one configuration and is removed. Returns the
-        (frames, 6) configurations.
+        (frames, nq) configurations.
         """
         q_from = self.q if q_from is None else check_configuration(self.system, q_from, "q_from")
         q_to = check_configuration(self.system, q_to, "q_to")
@@ -188,14 +202,13 @@ class CArmViewer:
         self.root["distances"].delete()
         animation = Animation(default_framerate=fps)
         geometry_data = self.robot.visual_data
-        for i, q in enumerate(path):
+        for i, q in enumerate(path):  # one FK per frame, in the one Data of the displayed robot
             frame = animation.at_frame(self.vis, i)
-            pin.forwardKinematics(self.model, self.robot.data, q)
-            pin.updateGeometryPlacements(self.model, self.robot.data, self.robot.visual_model, geometry_data)
+            source = self._frame_pose(q, "xray_source", self.data)
+            pin.updateGeometryPlacements(self.model, self.data, self.robot.visual_model, geometry_data)
             for gid, geometry in enumerate(self.robot.visual_model.geometryObjects):
                 name = self.robot.getViewerNodeName(geometry, pin.GeometryType.VISUAL)
                 frame[name].set_transform(geometry_data.oMg[gid].homogeneous)
-            source = self._frame_pose(q, "xray_source")
             frame[f"{ROOT}/cone"].set_transform(source)
             frame[f"{ROOT}/frames/xray_source"].set_transform(source)
         self.display(q_to)
@@ -234,8 +247,8 @@ class CArmViewer:
                 ghost.addGeometryObject(geometry)
         return ghost
 
-    def _frame_pose(self, q, frame: str) -> np.ndarray:
-        data = self.model.createData()
+    def _frame_pose(self, q, frame: str, data: pin.Data) -> np.ndarray:
+        """Forward kinematics of ``q`` into ``data`` (joints and frames); the pose (4x4) of ``frame``."""
         pin.framesForwardKinematics(self.model, data, np.asarray(q, dtype=float))
         return data.oMf[self.model.getFrameId(frame)].homogeneous
 

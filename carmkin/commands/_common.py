@@ -1,15 +1,43 @@
-"""Arguments and helpers shared by several subcommands."""
+"""What several subcommands share: the preset option, joint vectors and poses in mm/degrees, checked option
+values, output paths, and the errors a command line can raise.
+
+Only numpy and the light public face of carmkin are imported here (``carmkin --help`` must stay fast):
+Pinocchio, coal, scipy, matplotlib and meshcat load inside the commands' ``run`` when they are needed.
+
+Units on the command line: mm for prismatic joints and lengths, degrees for revolute joints and angles; the
+unit is in the option name (``--q-mm-deg``, ``--margin-mm``). The library works in m and rad.
+"""
 
 from __future__ import annotations
 
 import argparse
+import json
+import math
+from pathlib import Path
 
+import numpy as np
+
+from carmkin.errors import CarmkinError, InvalidConfigurationError, InvalidPoseError
 from carmkin.model.system import CArmSystem
 from carmkin.presets import list_presets, load_preset
 
 DEFAULT_PRESET = "siremobile-iso-c3d"
+#: Factors from SI to the command line's units: m -> mm, rad -> degrees.
+MM_PER_M = 1000.0
+DEG_PER_RAD = 180.0 / math.pi
+#: Metavar of a joint-vector option: one value per joint of the preset, mm or degrees.
+JOINTS_METAVAR = "V1,...,VN"
 
 
+class UsageError(CarmkinError):
+    """A command-line option has a value the command cannot use (names the option and what it expects)."""
+
+
+class NotApplicableError(UsageError):
+    """The command's mathematics does not apply to this system; the message names the alternative."""
+
+
+# --- the preset -----------------------------------------------------------------------------------------
 def add_preset_argument(parser: argparse.ArgumentParser) -> None:
     """``--preset NAME|FILE.toml`` (default: the Siremobile Iso-C 3D)."""
     parser.add_argument("--preset", default=DEFAULT_PRESET,
@@ -18,5 +46,230 @@ def add_preset_argument(parser: argparse.ArgumentParser) -> None:
 
 
 def system_from_args(args: argparse.Namespace) -> CArmSystem:
-    """The system named by ``--preset``."""
-    return load_preset(args.preset)
+    """The system named by ``--preset``; :class:`UsageError` for a missing or unreadable preset file."""
+    import tomllib
+
+    if str(args.preset).endswith(".toml") and not Path(args.preset).is_file():
+        raise UsageError(f"--preset {args.preset}: no such preset file")
+    try:
+        return load_preset(args.preset)
+    except tomllib.TOMLDecodeError as exc:
+        raise UsageError(f"--preset {args.preset}: not valid TOML ({exc})") from None
+
+
+def require_six_joints(system: CArmSystem, command: str, alternative: str) -> None:
+    """:class:`NotApplicableError` unless ``system`` is the paper's 6-joint chain (the closed forms' domain)."""
+    if system.nq != 6:
+        extra = system.joint_names[1:1 + system.nq - 6]  # the table joints between d0 and the C-arm
+        raise NotApplicableError(
+            f"{command} uses the closed form of the paper's 6-joint chain; preset {system.name!r} has "
+            f"{system.nq} joints (extra table joints {', '.join(extra)}): {alternative}")
+
+
+# --- joint vectors --------------------------------------------------------------------------------------
+def joint_units(system: CArmSystem) -> tuple[str, ...]:
+    """``"mm"`` for each prismatic joint, ``"deg"`` for each revolute one, in the order of q."""
+    return tuple("mm" if p else "deg" for p in system.prismatic)
+
+
+def to_cli_units(system: CArmSystem) -> np.ndarray:
+    """(nq,) factors from q in m/rad to the command line's mm/degrees."""
+    return np.array([MM_PER_M if p else DEG_PER_RAD for p in system.prismatic])
+
+
+def parse_joints(text: str, system: CArmSystem, option: str, check_range: bool = True) -> np.ndarray:
+    """``"v0,v1,..."`` in mm (prismatic) / degrees (revolute), one value per joint of ``system`` -> q (nq,) in m/rad.
+
+    Raises :class:`InvalidConfigurationError` naming ``option``, the expected count and the joint names for a
+    wrong count, a value that is not a finite number, or (``check_range``) a value outside its joint range
+    (a value on a limit is in range); values are never clipped.
+    """
+    names, units = system.joint_names, joint_units(system)
+    expected = ", ".join(f"{n} ({u})" for n, u in zip(names, units))
+    parts = [p.strip() for p in str(text).split(",")]
+    if len(parts) != system.nq:
+        raise InvalidConfigurationError(f"{option} needs {system.nq} comma-separated values for preset "
+                                        f"{system.name!r}: {expected}; got {len(parts)} in {text!r}")
+    values = np.empty(system.nq)
+    for i, part in enumerate(parts):
+        try:
+            values[i] = float(part)
+        except ValueError:
+            raise InvalidConfigurationError(f"{option}: {names[i]} ({units[i]}) is not a number: {part!r} "
+                                            f"(expected {expected})") from None
+        if not math.isfinite(values[i]):
+            raise InvalidConfigurationError(f"{option}: {names[i]} must be finite, got {part!r}")
+    q = values / to_cli_units(system)
+    if check_range:
+        check_joint_ranges(system, q, option)
+    return q
+
+
+def check_joint_ranges(system: CArmSystem, q: np.ndarray, option: str) -> None:
+    """:class:`InvalidConfigurationError` naming the first joint of q (m/rad) outside its range, in mm/degrees."""
+    scale = to_cli_units(system)
+    for i, (joint_range, unit) in enumerate(zip(system.joint_ranges, joint_units(system))):
+        excess = float(joint_range.excess(q[i]))
+        if excess != 0.0:
+            raise InvalidConfigurationError(
+                f"{option}: {system.joint_names[i]} = {q[i] * scale[i]:.6g} {unit} is outside its range "
+                f"[{joint_range.lower * scale[i]:.6g}, {joint_range.upper * scale[i]:.6g}] {unit} "
+                f"by {excess * scale[i]:+.4g} {unit}")
+
+
+def format_joints(system: CArmSystem, q, digits: int = 3, sign: bool = True) -> str:
+    """``"name=+1.000 mm, name=-2.500°, ..."`` for q (nq,) in m/rad."""
+    spec = f"{'+' if sign else ''}.{digits}f"
+    return ", ".join(f"{n}={v:{spec}}{' mm' if u == 'mm' else '°'}"
+                     for n, u, v in zip(system.joint_names, joint_units(system), np.asarray(q) * to_cli_units(system)))
+
+
+def joints_json(system: CArmSystem, q) -> dict[str, float]:
+    """``{"<name>_<unit>": value}`` for q (nq,) in m/rad, values in mm/degrees."""
+    return {f"{n}_{u}": float(v)
+            for n, u, v in zip(system.joint_names, joint_units(system), np.asarray(q) * to_cli_units(system))}
+
+
+# --- numbers and poses ----------------------------------------------------------------------------------
+def parse_numbers(text: str, count: int | None, option: str, error=UsageError) -> np.ndarray:
+    """Comma-separated finite numbers (``count`` of them unless ``None``); ``error`` names the option."""
+    try:
+        values = np.array([float(v) for v in str(text).split(",")])
+    except ValueError:
+        raise error(f"{option} must be numbers separated by commas, got {text!r}") from None
+    if count is not None and values.shape != (count,):
+        raise error(f"{option} needs {count} comma-separated numbers, got {len(values)} in {text!r}")
+    if not np.all(np.isfinite(values)):
+        raise error(f"{option} values must be finite, got {text!r}")
+    return values
+
+
+def pose_from_mm_deg(position_mm, rotation_vector_deg) -> np.ndarray:
+    """4x4 pose (m) from a position in mm and a rotation vector (axis × angle, R = exp([r]×)) in degrees."""
+    from scipy.spatial.transform import Rotation
+
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_rotvec(np.radians(np.asarray(rotation_vector_deg, dtype=float))).as_matrix()
+    T[:3, 3] = np.asarray(position_mm, dtype=float) / MM_PER_M
+    return T
+
+
+def read_pose(path: str, option: str) -> np.ndarray:
+    """The 4x4 pose (m) in a file, translation in mm; :class:`InvalidPoseError` naming ``option`` otherwise.
+
+    ``*.json``: ``{"position_mm": [x, y, z], "rotation_vector_deg": [rx, ry, rz]}`` or ``{"matrix_mm": 4x4}``;
+    any other file: a 4x4 matrix as text (``numpy.loadtxt``). The rigidity check is the caller's.
+    """
+    if Path(path).suffix.lower() == ".json":
+        return _read_json_pose(path, option)
+    try:
+        T = np.loadtxt(path, dtype=float, ndmin=2)
+    except (OSError, ValueError) as exc:
+        raise InvalidPoseError(f"{option} {path}: cannot read a 4x4 matrix ({exc})") from None
+    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+        raise InvalidPoseError(f"{option} {path}: expected a 4x4 matrix of finite numbers, got shape {T.shape}")
+    T[:3, 3] /= MM_PER_M
+    return T
+
+
+def _read_json_pose(path: str, option: str) -> np.ndarray:
+    try:
+        with open(path) as stream:
+            content = json.load(stream)
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise InvalidPoseError(f"{option} {path}: {exc}") from None
+    if not isinstance(content, dict):
+        raise InvalidPoseError(f"{option} {path}: expected a JSON object")
+    if "matrix_mm" in content:
+        try:
+            T = np.array(content["matrix_mm"], dtype=float)
+        except (TypeError, ValueError):
+            raise InvalidPoseError(f"{option} {path}: matrix_mm must be a 4x4 array of numbers") from None
+        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+            raise InvalidPoseError(f"{option} {path}: matrix_mm must be 4x4 finite numbers, got shape {T.shape}")
+        T[:3, 3] /= MM_PER_M
+        return T
+    try:
+        position = np.array(content["position_mm"], dtype=float)
+        rotation = np.array(content["rotation_vector_deg"], dtype=float)
+    except KeyError as exc:
+        raise InvalidPoseError(f"{option} {path}: missing key {exc}; expected position_mm and "
+                               "rotation_vector_deg, or matrix_mm") from None
+    except (TypeError, ValueError):
+        raise InvalidPoseError(f"{option} {path}: position_mm/rotation_vector_deg must be numbers") from None
+    if position.shape != (3,) or rotation.shape != (3,) or not np.all(np.isfinite(np.r_[position, rotation])):
+        raise InvalidPoseError(f"{option} {path}: position_mm and rotation_vector_deg need 3 finite values each")
+    return pose_from_mm_deg(position, rotation)
+
+
+# --- option values (argparse types: a bad value is a one-line usage error naming the option) ---------------
+def integer(minimum: int | None = None, maximum: int | None = None):
+    """argparse type: an integer in ``[minimum, maximum]``."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+        if (minimum is not None and value < minimum) or (maximum is not None and value > maximum):
+            raise argparse.ArgumentTypeError(f"expected an integer {_bounds(minimum, maximum)}, got {value}")
+        return value
+    parse.__name__ = "integer"
+    return parse
+
+
+def number(minimum: float | None = None, maximum: float | None = None, open_minimum: bool = False,
+           open_maximum: bool = False, unit: str = ""):
+    """argparse type: a finite number in ``[minimum, maximum]``; ``open_minimum``/``open_maximum`` exclude the
+    bound itself."""
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number{_unit(unit)}, got {text!r}") from None
+        too_low = minimum is not None and (value <= minimum if open_minimum else value < minimum)
+        too_high = maximum is not None and (value >= maximum if open_maximum else value > maximum)
+        if not math.isfinite(value) or too_low or too_high:
+            raise argparse.ArgumentTypeError(f"expected a finite number "
+                                             f"{_bounds(minimum, maximum, open_minimum, open_maximum)}{_unit(unit)}, "
+                                             f"got {text}")
+        return value
+    parse.__name__ = "number"
+    return parse
+
+
+def _bounds(minimum, maximum, open_minimum: bool = False, open_maximum: bool = False) -> str:
+    low = None if minimum is None else f"{'>' if open_minimum else '>='} {minimum:g}"
+    high = None if maximum is None else f"{'<' if open_maximum else '<='} {maximum:g}"
+    return " and ".join(b for b in (low, high) if b) or "(any)"
+
+
+def _unit(unit: str) -> str:
+    return f" ({unit})" if unit else ""
+
+
+# --- output files ---------------------------------------------------------------------------------------
+def output_path(path: str, option: str, suffixes: tuple[str, ...] | None = None) -> Path:
+    """``path`` ready to be written: its folder created if missing; :class:`UsageError` naming ``option`` if
+    the suffix is not one of ``suffixes`` or the folder cannot be made."""
+    target = Path(path)
+    if suffixes is not None and target.suffix.lower().lstrip(".") not in suffixes:
+        raise UsageError(f"{option} {path}: the file extension must be one of {', '.join('.' + s for s in suffixes)}")
+    if target.is_dir():
+        raise UsageError(f"{option} {path}: is a folder, expected a file name")
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UsageError(f"{option} {path}: cannot create the folder {str(target.parent)!r} ({exc.strerror})") from None
+    return target
+
+
+def plot_formats() -> tuple[str, ...]:
+    """File extensions matplotlib can write (imports matplotlib: call it inside ``run``)."""
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    return tuple(sorted(FigureCanvasBase.get_supported_filetypes()))
+
+
+def plot_path(path: str, option: str) -> Path:
+    """:func:`output_path` for a matplotlib figure: the extension must be a format matplotlib writes."""
+    return output_path(path, option, plot_formats())

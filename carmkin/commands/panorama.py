@@ -9,7 +9,11 @@ range (Siremobile preset: wigwag/angular/orbital 0°, table translation 0, verti
   carmkin panorama map --out map.png                  validity of a grid of principal points (PNG)
   carmkin panorama parallax --length-mm 400           stitch a 3-plane marker phantom: parallax (px)
 
-Joint values and moves print in mm (d0, d1, d3) and degrees (θ2, θ4, θ5). Δd0 is the C-arm's motion
+shot and plan take --html FILE: a self-contained viewer page (open it in a browser) with the C-arm at the
+reference configuration, a cone at every shot's target pose, and the last valid shot as a ghost.
+
+Joint values (--reference-q-mm-deg: one per joint of the preset) and moves print in mm for prismatic
+joints and degrees for revolute joints. Δd0 is the C-arm's motion
 relative to the table along Z0: the table itself moves by −Δd0.
 """
 
@@ -20,43 +24,41 @@ import math
 
 import numpy as np
 
-from carmkin.imaging import panorama as pano
-from carmkin.imaging import phantom as ph
-
-from ._common import add_preset_argument, system_from_args
+from ._common import (
+    JOINTS_METAVAR,
+    MM_PER_M,
+    UsageError,
+    add_preset_argument,
+    format_joints,
+    integer,
+    number,
+    output_path,
+    parse_joints,
+    parse_numbers,
+    plot_path,
+    system_from_args,
+)
 
 HELP = "plan parallax-free panoramas: one shot, a sequence, the validity map, the parallax check"
 
 
-def _numbers(text: str, count: int | None, flag: str) -> list[float]:
-    try:
-        values = [float(v) for v in text.split(",")]
-    except ValueError as exc:
-        raise pano.PanoramaError(f"{flag} must be numbers separated by commas, got {text!r}") from exc
-    if count is not None and len(values) != count:
-        raise pano.PanoramaError(f"{flag} needs {count} values, got {len(values)}")
-    if not all(math.isfinite(v) for v in values):
-        raise pano.PanoramaError(f"{flag} values must be finite, got {text!r}")
-    return values
-
-
 def _add_common(parser: argparse.ArgumentParser) -> None:
     add_preset_argument(parser)
-    parser.add_argument("--reference-q-mm-deg", metavar="D0,D1,T2,D3,T4,T5",
+    parser.add_argument("--reference-q-mm-deg", metavar=JOINTS_METAVAR,
                         help="configuration of the reference image (mm / deg; default: mid-range joints)")
-    parser.add_argument("--margin-mm", type=float, default=0.0,
+    parser.add_argument("--margin-mm", type=number(0.0, unit="mm"), default=0.0,
                         help="collision margin of the validity check (default 0: only intersections)")
     parser.add_argument("--no-fallback", action="store_true", help="do not try the QP IK when no "
                         "closed-form branch is valid")
 
 
 def _add_line(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--length-mm", type=float, default=400.0, help="length to cover (default 400)")
-    parser.add_argument("--overlap", type=float, default=0.0,
+    parser.add_argument("--length-mm", type=number(0.0, open_minimum=True, unit="mm"), default=400.0, help="length to cover (default 400)")
+    parser.add_argument("--overlap", type=number(0.0, 1.0, open_maximum=True), default=0.0,
                         help="overlap of consecutive shots, fraction of a shot in [0, 1) (default 0)")
     parser.add_argument("--direction-px", metavar="DU,DV",
                         help="panorama direction in pixels (default: the table axis Z0 as seen in the image)")
-    parser.add_argument("--object-distance-mm", type=float, default=None,
+    parser.add_argument("--object-distance-mm", type=number(0.0, open_minimum=True, unit="mm"), default=None,
                         help="distance from the source to the object plane ⟂ to the reference axis "
                         "(default: where the reference axis leaves the table top)")
 
@@ -66,16 +68,19 @@ def register(parser: argparse.ArgumentParser) -> None:
     shot = sub.add_parser("shot", help="plan one shot from its principal point (Table 4.3)")
     _add_common(shot)
     shot.add_argument("--principal-point", required=True, metavar="U,V", help="principal point (px)")
+    _add_html(shot)
     plan = sub.add_parser("plan", help="shots covering a length with a given overlap")
     _add_common(plan)
     _add_line(plan)
+    _add_html(plan)
     vmap = sub.add_parser("map", help="validity map of principal points, saved as a PNG")
     _add_common(vmap)
     vmap.add_argument("--range-px", metavar="UMIN,UMAX,VMIN,VMAX",
                       help="principal points to scan (default: the reference image extended by 3 widths "
                       "left/right and 2 heights up/down)")
-    vmap.add_argument("--grid", type=int, default=41, help="grid points along u (v in proportion; default 41)")
-    vmap.add_argument("--out", default="panorama_map.png", help="PNG file (default panorama_map.png)")
+    vmap.add_argument("--grid", type=integer(2, 1001), default=41, help="grid points along u (v in proportion; default 41)")
+    vmap.add_argument("--out", default="panorama_map.png",
+                      help="image file, PNG (or PDF, SVG...) (default panorama_map.png)")
     vmap.add_argument("--with-plan", action="store_true", help="overlay the plan of --length-mm/--overlap")
     _add_line(vmap)
     par = sub.add_parser("parallax", help="stitch a synthetic 3-plane marker phantom and report parallax")
@@ -83,25 +88,43 @@ def register(parser: argparse.ArgumentParser) -> None:
     _add_line(par)
     par.add_argument("--noise", default="0.1,0;1,0;0,0.1;0,1;1,1", metavar="MM,DEG;...",
                      help="pose noise levels σ (mm, deg), separated by ';' (default '0.1,0;1,0;0,0.1;0,1;1,1')")
-    par.add_argument("--trials", type=int, default=50, help="noise trials per level (default 50)")
-    par.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    par.add_argument("--trials", type=integer(1), default=50, help="noise trials per level (default 50)")
+    par.add_argument("--seed", type=integer(0), default=0, help="random seed (default 0)")
 
 
-def _planner(system, args) -> pano.PanoramaPlanner:
+def _add_html(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--html", metavar="FILE", help="also write the shots into a viewer page (.html) to open in "
+                        "a browser: cones at the shots' poses, the last valid shot as a ghost")
+
+
+def _write_html(system, planner, shots, path) -> None:
+    """The viewer page of ``shots``: the C-arm at the reference, cones at the targets, the last valid shot's ghost."""
+    from carmkin.viz import CArmViewer
+
+    viewer = CArmViewer(system, q=planner.q_reference)
+    viewer.draw_shots(np.array([shot.target for shot in shots]))
+    valid = [shot for shot in shots if shot.valid]
+    if valid:
+        viewer.show_ghost(valid[-1].q)
+    viewer.save_html(path)
+    print(f"wrote {path}")
+
+
+def _planner(system, args):
+    from carmkin.imaging import panorama as pano
+
     q = None
     if args.reference_q_mm_deg is not None:
-        values = _numbers(args.reference_q_mm_deg, system.nq, "--reference-q-mm-deg")
-        q = np.array([v / 1e3 if p else math.radians(v) for v, p in zip(values, system.prismatic)])
+        q = parse_joints(args.reference_q_mm_deg, system, "--reference-q-mm-deg")
     return pano.PanoramaPlanner(system, q_reference=q, fallback=not args.no_fallback,
-                                margin=args.margin_mm / 1e3)
+                                margin=args.margin_mm / MM_PER_M)
 
 
 def _joints(system, q) -> str:
-    return ", ".join(f"{n}={v * 1e3 if p else math.degrees(v):+.3f}{'mm' if p else '°'}"
-                     for n, v, p in zip(system.joint_names, q, system.prismatic))
+    return format_joints(system, q)
 
 
-def _print_shot(system, shot: pano.Shot, label: str = "shot") -> None:
+def _print_shot(system, shot, label: str = "shot") -> None:
     u, v = shot.principal_point
     tilt = math.degrees(math.acos(np.clip(shot.axis[2], -1.0, 1.0)))
     print(f"{label}: principal point ({u:.2f}, {v:.2f}) px, tilt {tilt:.3f}° from the reference axis: "
@@ -120,13 +143,19 @@ def _print_shot(system, shot: pano.Shot, label: str = "shot") -> None:
 def _line_args(planner, args):
     direction = None
     if args.direction_px is not None:
-        du, dv = _numbers(args.direction_px, 2, "--direction-px")
+        du, dv = parse_numbers(args.direction_px, 2, "--direction-px")
         direction = planner.direction_from_pixels(du, dv)
-    distance = None if args.object_distance_mm is None else args.object_distance_mm / 1e3
-    return args.length_mm / 1e3, args.overlap, direction, distance
+    distance = None
+    if args.object_distance_mm is not None:
+        sid_mm = planner.system.carm.source_to_detector * MM_PER_M
+        if args.object_distance_mm >= sid_mm:
+            raise UsageError(f"--object-distance-mm {args.object_distance_mm:g} puts the object plane at or beyond "
+                             f"the detector ({sid_mm:g} mm from the source): expected > 0 and < {sid_mm:g} mm")
+        distance = args.object_distance_mm / MM_PER_M
+    return args.length_mm / MM_PER_M, args.overlap, direction, distance
 
 
-def _print_plan(system, plan: pano.Plan) -> None:
+def _print_plan(system, plan) -> None:
     print(f"object plane at {plan.distance * 1e3:.1f} mm from the source, direction "
           f"{np.array2string(plan.direction, precision=4)} (reference source frame); "
           f"{len(plan.shots)} shots, overlap {plan.overlap:g}")
@@ -141,16 +170,24 @@ def _print_plan(system, plan: pano.Plan) -> None:
 
 def run(args: argparse.Namespace) -> int:
     system = system_from_args(args)
+    if args.panorama_command == "map":
+        args.out = plot_path(args.out, "--out")
+    html = getattr(args, "html", None)
+    html = None if html is None else output_path(html, "--html", ("html", "htm"))
     planner = _planner(system, args)
     print(f"preset {system.name}; reference: {_joints(system, planner.q_reference)}")
     if args.panorama_command == "shot":
-        u, v = _numbers(args.principal_point, 2, "--principal-point")
+        u, v = parse_numbers(args.principal_point, 2, "--principal-point")
         shot = planner.shot((u, v))
         _print_shot(system, shot)
+        if html is not None:
+            _write_html(system, planner, [shot], html)
         return 0 if shot.valid else 1
     if args.panorama_command == "plan":
         plan = planner.plan(*_line_args(planner, args))
         _print_plan(system, plan)
+        if html is not None:
+            _write_html(system, planner, plan.shots, html)
         return 0 if plan.valid else 1
     if args.panorama_command == "map":
         return _run_map(system, planner, args)
@@ -160,14 +197,16 @@ def run(args: argparse.Namespace) -> int:
 def _run_map(system, planner, args) -> int:
     import matplotlib
 
+    from carmkin.imaging import panorama as pano
+
     matplotlib.use("Agg")
     w, h = planner.size
     if args.range_px is None:
         umin, umax, vmin, vmax = -3.0 * w, 4.0 * w, -2.0 * h, 3.0 * h
     else:
-        umin, umax, vmin, vmax = _numbers(args.range_px, 4, "--range-px")
-    if args.grid < 2 or umax <= umin or vmax <= vmin:
-        raise pano.PanoramaError("--grid must be >= 2 and --range-px increasing")
+        umin, umax, vmin, vmax = parse_numbers(args.range_px, 4, "--range-px")
+    if umax <= umin or vmax <= vmin:
+        raise UsageError(f"--range-px needs UMIN < UMAX and VMIN < VMAX, got {args.range_px!r}")
     us = np.linspace(umin, umax, args.grid)
     vs = np.linspace(vmin, vmax, max(2, round(args.grid * (vmax - vmin) / (umax - umin))))
     categories = planner.validity_map(us, vs)
@@ -180,6 +219,11 @@ def _run_map(system, planner, args) -> int:
 
 
 def _run_parallax(system, planner, args) -> int:
+    from carmkin.imaging import phantom as ph
+
+    levels = [parse_numbers(item, 2, "--noise") for item in args.noise.split(";") if item.strip()]
+    if not levels or any(np.any(level < 0) for level in levels):
+        raise UsageError(f"--noise needs levels 'MM,DEG;...' with σ >= 0 (mm, deg), got {args.noise!r}")
     plan = planner.plan(*_line_args(planner, args))
     print(f"{len(plan.shots)} shots, overlap {plan.overlap:g}, object plane at {plan.distance * 1e3:.1f} mm; "
           f"plan {'valid' if plan.valid else 'INVALID'}")
@@ -187,7 +231,6 @@ def _run_parallax(system, planner, args) -> int:
     print(f"phantom: {len(phantom.points)} markers on {len(phantom.offsets)} planes 80 mm apart "
           f"(table Y0 = {np.array2string(phantom.offsets * 1e3, precision=1)} mm)")
     print(ph.parallax_check(planner, plan, phantom).describe())
-    levels = [_numbers(item, 2, "--noise") for item in args.noise.split(";") if item.strip()]
     print(f"pose noise ({args.trials} trials per level; discrepancy to the exact reference projection):")
     print("σ (mm)  σ (deg)  RMS (px)  max (px)  f·σ_rad (px)  f·σ_m/z (px)")
     for row in ph.noise_propagation(planner, plan, phantom, levels, trials=args.trials, seed=args.seed):

@@ -17,67 +17,82 @@ import math
 
 import numpy as np
 
-from carmkin import singularity as sing
-from carmkin.model.params import JOINT_NAMES, PRISMATIC
-
-from ._common import add_preset_argument, system_from_args
+from ._common import (
+    JOINTS_METAVAR,
+    UsageError,
+    add_preset_argument,
+    format_joints,
+    integer,
+    number,
+    parse_joints,
+    plot_path,
+    require_six_joints,
+    system_from_args,
+)
 
 HELP = "singular cases, |det J| / manipulability maps, and the eq. 4.7 check"
+#: Measures of the second map, as named by carmkin.singularity.MAP_MEASURES (checked in run; a test keeps them equal).
+MEASURES_HELP = "det, manipulability, inverse-condition or sigma-min"
 
 
 def register(parser: argparse.ArgumentParser) -> None:
     add_preset_argument(parser)
-    parser.add_argument("--q-mm-deg", metavar="D0,D1,T2,D3,T4,T5",
+    parser.add_argument("--q-mm-deg", metavar=JOINTS_METAVAR,
                         help="configuration, mm for d0 d1 d3 and deg for θ2 θ4 θ5 "
                         "(default: revolute 0°, prismatic mid-range)")
-    parser.add_argument("--plot", metavar="OUT.png", help="write the two singularity maps to this PNG")
+    parser.add_argument("--plot", metavar="OUT.png",
+                        help="write the two singularity maps to this image (PNG, PDF, SVG...)")
     parser.add_argument("--pair", default="angular,orbital",
                         help="joints of the second map, e.g. 'angular,orbital' or 'wigwag,horizontal' "
                         "(default angular,orbital)")
-    parser.add_argument("--measure", default="inverse-condition", choices=sing.MAP_MEASURES,
-                        help="measure of the second map (default inverse-condition)")
-    parser.add_argument("--grid", type=int, default=61, help="grid points per map axis (default 61)")
-    parser.add_argument("--length-mm", type=float, default=None,
+    parser.add_argument("--measure", default="inverse-condition",
+                        help=f"measure of the second map: {MEASURES_HELP} (default inverse-condition)")
+    parser.add_argument("--grid", type=integer(2, 1001), default=61, help="grid points per map axis (default 61)")
+    parser.add_argument("--length-mm", type=number(0.0, open_minimum=True, unit="mm"), default=None,
                         help="characteristic length for the scaling (default: orbital offset)")
-    parser.add_argument("--near-deg", type=float, default=5.0,
+    parser.add_argument("--near-deg", type=number(0.0, 180.0, unit="deg"), default=5.0,
                         help="report a singular set as near within this angle (default 5)")
-    parser.add_argument("--check", type=int, default=0, metavar="N",
+    parser.add_argument("--check", type=integer(0), default=0, metavar="N",
                         help="compare Pinocchio's det J with eq. 4.7 on N random configurations")
-    parser.add_argument("--random-setups", type=int, default=100, metavar="K",
+    parser.add_argument("--random-setups", type=integer(0), default=100, metavar="K",
                         help="spread --check over K random non-isocentric systems too (default 100)")
-    parser.add_argument("--seed", type=int, default=0, help="random seed of --check (default 0)")
-    parser.add_argument("--tolerance", type=float, default=1e-9, help="pass threshold of --check (default 1e-9)")
+    parser.add_argument("--seed", type=integer(0), default=0, help="random seed of --check (default 0)")
+    parser.add_argument("--tolerance", type=number(0.0), default=1e-9,
+                        help="pass threshold of --check, m and rad (default 1e-9)")
 
 
 def configuration(system, text: str | None) -> np.ndarray:
-    """q (SI) from 'D0,D1,T2,D3,T4,T5' in mm/deg, or the default (revolute 0, prismatic mid-range)."""
+    """q (SI) from --q-mm-deg, or the default (revolute 0, prismatic mid-range)."""
     if text is None:
         mid = (system.lower + system.upper) / 2
         return np.where(system.prismatic, mid, 0.0)
-    try:
-        values = [float(v) for v in text.split(",")]
-    except ValueError as exc:
-        raise sing.SingularityError(f"--q-mm-deg must be six numbers separated by commas, got {text!r}") from exc
-    if len(values) != 6:
-        raise sing.SingularityError(f"--q-mm-deg needs 6 values (d0,d1,θ2,d3,θ4,θ5), got {len(values)}")
-    return np.array([v / 1e3 if p else math.radians(v) for v, p in zip(values, PRISMATIC)])
+    return parse_joints(text, system, "--q-mm-deg")
 
 
 def pair_of(text: str) -> tuple[int, int]:
     """Joint indices from 'name,name'."""
+    from carmkin import singularity as sing
+
     names = text.split(",")
     if len(names) != 2:
-        raise sing.SingularityError(f"--pair needs two joint names separated by a comma, got {text!r}")
+        raise UsageError(f"--pair needs two joint names separated by a comma, got {text!r}")
     return sing.joint_index(names[0]), sing.joint_index(names[1])
 
 
 def run(args: argparse.Namespace) -> int:
+    from carmkin import singularity as sing
+
     system = system_from_args(args)
+    require_six_joints(system, "carmkin singularity (eq. 4.7, its singular cases and maps)",
+                       "use --preset siremobile-iso-c3d, or carmkin.singularity.measures(system, q) in Python for "
+                       f"the rank and σmin of the 6×{system.nq} Jacobian")
+    if args.measure not in sing.MAP_MEASURES:
+        raise UsageError(f"--measure {args.measure!r}: expected one of {', '.join(sing.MAP_MEASURES)}")
+    plot = None if args.plot is None else plot_path(args.plot, "--plot")
+    pair = pair_of(args.pair)
     length = None if args.length_mm is None else args.length_mm / 1e3
     q = configuration(system, args.q_mm_deg)
-    shown = ", ".join(f"{n}={v * 1e3 if p else math.degrees(v):g}{'mm' if p else '°'}"
-                      for n, v, p in zip(JOINT_NAMES, q, PRISMATIC))
-    print(f"preset {system.name}: q = {shown}")
+    print(f"preset {system.name}: q = {format_joints(system, q, digits=4, sign=False)}")
     print(sing.classify(system, q, near=math.radians(args.near_deg), length=length).describe())
     status = 0
     if args.check:
@@ -87,8 +102,7 @@ def run(args: argparse.Namespace) -> int:
               f"non-isocentric systems: max |difference| {worst:.3e} {'<=' if ok else '>'} {args.tolerance:g}: "
               f"{'PASS' if ok else 'FAIL'}")
         status = 0 if ok else 1
-    if args.plot:
-        pair = pair_of(args.pair)
-        sing.plot_maps(system, q, args.plot, pair=pair, n=args.grid, measure=args.measure, length=length)
-        print(f"wrote {args.plot}")
+    if plot is not None:
+        sing.plot_maps(system, q, plot, pair=pair, n=args.grid, measure=args.measure, length=length)
+        print(f"wrote {plot}")
     return status

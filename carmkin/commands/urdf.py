@@ -5,20 +5,21 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ._common import add_preset_argument, system_from_args
+from ._common import add_preset_argument, output_path, system_from_args
 
 HELP = "write the URDF of a preset (to stdout or -o FILE)"
 
 
 def register(parser: argparse.ArgumentParser) -> None:
     add_preset_argument(parser)
-    parser.add_argument("-o", "--output", help="file to write (default: standard output)")
+    parser.add_argument("-o", "--output", help="file to write, its folder created if missing (default: standard output)")
 
 
 def run(args: argparse.Namespace) -> int:
+    output = None if args.output is None else output_path(args.output, "--output")
     text = system_from_args(args).urdf()
-    if args.output:
-        with open(args.output, "w") as stream:
+    if output is not None:
+        with open(output, "w") as stream:
             stream.write(text)
         print(f"wrote {args.output}", file=sys.stderr)
     else:

@@ -11,25 +11,25 @@ from __future__ import annotations
 
 import argparse
 
-from tqdm import tqdm
-
-from carmkin.robot.verify import FRAMES, verify
-
-from ._common import add_preset_argument, system_from_args
+from ._common import add_preset_argument, integer, number, system_from_args
 
 HELP = "cross-check closed-form kinematics against Pinocchio (exit 1 above tolerance)"
 
 
 def register(parser: argparse.ArgumentParser) -> None:
     add_preset_argument(parser)
-    parser.add_argument("--samples", type=int, default=10_000, help="number of configurations (default 10000)")
-    parser.add_argument("--random-setups", nargs="?", type=int, const=100, default=0, metavar="K",
+    parser.add_argument("--samples", type=integer(1), default=10_000, help="number of configurations (default 10000)")
+    parser.add_argument("--random-setups", nargs="?", type=integer(0), const=100, default=0, metavar="K",
                         help="also use K random table setups and non-isocentric geometries (default K=100)")
-    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    parser.add_argument("--tolerance", type=float, default=1e-12, help="pass threshold in m and rad (default 1e-12)")
+    parser.add_argument("--seed", type=integer(0), default=0, help="random seed (default 0)")
+    parser.add_argument("--tolerance", type=number(0.0), default=1e-12, help="pass threshold in m and rad (default 1e-12)")
 
 
 def run(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from carmkin.robot.verify import FRAMES, verify
+
     system = system_from_args(args)
     with tqdm(total=args.samples, unit="q", desc="verify", leave=False) as bar:
         report = verify(system, args.samples, args.random_setups, args.seed, progress=bar.update)

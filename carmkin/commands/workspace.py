@@ -22,38 +22,49 @@ import argparse
 import json
 import sys
 
-from tqdm import tqdm
-
-from carmkin.studies import table_workspace, workspace
-
-from ._common import DEFAULT_PRESET, add_preset_argument, system_from_args
+from ._common import (
+    DEFAULT_PRESET,
+    MM_PER_M,
+    UsageError,
+    add_preset_argument,
+    integer,
+    number,
+    output_path,
+    plot_path,
+    system_from_args,
+)
 
 #: Preset used by ``--table-dofs`` when ``--preset`` is left at its default.
 TABLE_PRESET = "siremobile-iso-c3d-motorized-table"
+
+#: The rows of --table-dofs, as named by carmkin.studies.table_workspace.MODELS (a test keeps them equal).
+TABLE_MODELS = ("none", "paper", "translations", "all")
 
 HELP = "5- vs 6-DOF workspace study of §4.6.1 (Table 4.5): joint-range excess of the 5-DOF IK"
 
 
 def register(parser: argparse.ArgumentParser) -> None:
     add_preset_argument(parser)
-    parser.add_argument("--translations-mm", type=float, nargs="+", default=list(workspace.PAPER_GRID.translations_mm),
-                        metavar="D0", help="table translations d0 in mm (default: 0 50 ... 400)")
+    parser.add_argument("--translations-mm", type=number(unit="mm"), nargs="+", default=None,
+                        metavar="D0", help="table translations d0 in mm (default: the paper's 0 50 ... 400)")
     parser.add_argument("--json", metavar="FILE", help="write the per-joint statistics as JSON")
     parser.add_argument("--plot", metavar="FILE", help="write a plot of excess and K against translation (PNG, PDF...)")
-    parser.add_argument("--tolerance", type=float, default=1e-9,
+    parser.add_argument("--tolerance", type=number(0.0), default=1e-9,
                         help="excess (m or rad) still counted as inside a range (default 1e-9)")
-    parser.add_argument("--table-dofs", choices=(*table_workspace.MODELS, "compare"),
+    parser.add_argument("--table-dofs", choices=(*TABLE_MODELS, "compare"),
                         help="instead of Table 4.5: generalised study over random poses of the full motorized "
                         "table + C-arm, reachable with only the C-arm (none), + d0 (paper), + lateral and height "
                         f"(translations), + tilts and rotation (all), or all four rows (compare); preset "
                         f"defaults to {TABLE_PRESET}")
-    parser.add_argument("--poses", type=int, default=300, help="--table-dofs: number of desired poses (default 300)")
-    parser.add_argument("--seed", type=int, default=0, help="--table-dofs: random seed of the poses (default 0)")
-    parser.add_argument("--random-seeds", type=int, default=6,
+    parser.add_argument("--poses", type=integer(1), default=300, help="--table-dofs: number of desired poses (default 300)")
+    parser.add_argument("--seed", type=integer(0), default=0, help="--table-dofs: random seed of the poses (default 0)")
+    parser.add_argument("--random-seeds", type=integer(0), default=6,
                         help="--table-dofs: random QP seeds per pose after the deterministic ones (default 6)")
 
 
-def _print_table(result: workspace.StudyResult) -> None:
+def _print_table(result) -> None:
+    from carmkin.studies import workspace
+
     print(f"{'quantity':<18}{'d0 (mm)':>8}{'ours':>11}{'dissertation':>14}")
     for quantity, d0, ours, paper in workspace.comparison_rows(result):
         flag = "" if paper in ("—", ours) else "  *"
@@ -67,6 +78,10 @@ def _print_table(result: workspace.StudyResult) -> None:
 
 def run_table_study(args: argparse.Namespace) -> int:
     """The generalised study of :mod:`carmkin.studies.table_workspace`."""
+    from tqdm import tqdm
+
+    from carmkin.studies import table_workspace
+
     if args.preset == DEFAULT_PRESET:
         args.preset = TABLE_PRESET
     system = system_from_args(args)
@@ -89,10 +104,24 @@ def run_table_study(args: argparse.Namespace) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.json:
+        args.json = output_path(args.json, "--json", ("json",))
+    if args.plot:
+        args.plot = plot_path(args.plot, "--plot")
     if getattr(args, "table_dofs", None):
         return run_table_study(args)
+    from tqdm import tqdm
+
+    from carmkin.studies import workspace
+
     system = system_from_args(args)
-    grid = workspace.StudyGrid(translations_mm=tuple(args.translations_mm))
+    translations = workspace.PAPER_GRID.translations_mm if args.translations_mm is None else args.translations_mm
+    d0 = system.joint_ranges[0]
+    for value in translations:
+        if d0.excess(value / MM_PER_M) != 0.0:
+            raise UsageError(f"--translations-mm {value:g} is outside the table translation range "
+                             f"[{d0.lower * MM_PER_M:g}, {d0.upper * MM_PER_M:g}] mm of preset {system.name!r}")
+    grid = workspace.StudyGrid(translations_mm=tuple(translations))
     n = len(grid.configurations()) * len(grid.translations_mm)
     with tqdm(total=n, unit="pose", desc="workspace", leave=False, file=sys.stderr) as bar:
         result = workspace.run_study(system, grid, tolerance=args.tolerance, progress=bar.update)

@@ -95,3 +95,15 @@ def test_distance_jacobian_matches_finite_differences(u, seed):
     pred = rows @ dq
     scale = np.linalg.norm(rows, axis=1) * np.linalg.norm(dq)
     assert np.all(np.abs(fd - pred) <= 0.15 * scale + 2e-6)
+
+
+def test_one_policy_for_every_preset():
+    """The pair list is the same documented policy whatever the table joints: the motorized preset's extra
+    links (table_tilt_link, ...) carry no geometry of their own, so its pairs are the plain preset's."""
+    import carmkin
+
+    motorized = CollisionScene.from_system(carmkin.load_preset("siremobile-iso-c3d-motorized-table"))
+    assert motorized.pairs == CollisionScene.from_system(PRESET).pairs
+    for a, b in motorized.link_pairs():
+        assert a in ("dh_frame_2", "dh_frame_3", "dh_frame_4", "dh_frame_5", "dh_frame_6", "xray_source", "detector")
+        assert b in ("table", "floor") and (a, b) != ("dh_frame_2", "floor")

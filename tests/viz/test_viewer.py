@@ -16,6 +16,7 @@ import threading
 import time
 import urllib.request
 
+import carmkin
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -35,10 +36,12 @@ from carmkin.viz import (
 from carmkin.viz.distances import distance_color
 from carmkin.viz.shapes import cone_vertices
 from hypothesis import given, settings
+from hypothesis import strategies as st
 from strategies import PRESET, configurations, systems
 
 from carmkin.cli import main
-from carmkin.commands.view import parse_configuration
+from carmkin.commands._common import parse_joints
+from carmkin.robot.collision import CARM_EXCLUDED_PAIRS, CollisionScene, link_of
 from carmkin.errors import InvalidConfigurationError, InvalidPoseError
 
 # RGB of the xacro materials (urdf/carm_table.urdf.xacro), typed here from the file, not from carmkin.viz.
@@ -133,14 +136,14 @@ def is_loopback(address: str) -> bool:
 
 # --- parsing and inputs -------------------------------------------------------------------------------
 def test_parse_configuration_converts_mm_and_degrees():
-    q = parse_configuration("100, 250, -5, 150, 90, -45", "--q")
+    q = parse_joints("100, 250, -5, 150, 90, -45", PRESET, "--q")
     np.testing.assert_allclose(q, [0.1, 0.25, -np.pi / 36, 0.15, np.pi / 2, -np.pi / 4], rtol=0, atol=1e-15)
 
 
 @pytest.mark.parametrize("text", ["1,2,3", "1,2,3,4,5,6,7", "0,0,x,0,0,0", "0,0,nan,0,0,0"])
 def test_parse_configuration_rejects_bad_text(text):
     with pytest.raises(InvalidConfigurationError, match="--q"):
-        parse_configuration(text, "--q")
+        parse_joints(text, PRESET, "--q")
 
 
 def test_viewer_rejects_configuration_outside_the_limits():
@@ -213,6 +216,24 @@ def test_display_puts_cone_and_source_triad_at_the_closed_form_source_pose(q):
     np.testing.assert_allclose(node_transform(viewer, "carmkin/frames/xray_source"), PRESET.fk(q), atol=1e-9)
 
 
+MOTORIZED = carmkin.load_preset("siremobile-iso-c3d-motorized-table")
+
+
+@settings(max_examples=10)
+@given(data=st.data())
+def test_viewer_is_general_in_the_number_of_joints(data):
+    """On the 11-joint motorized preset: cone at the closed-form source pose, ghost, move of (frames, 11)."""
+    q, q_to = (np.array([data.draw(st.floats(r.lower, r.upper)) for r in MOTORIZED.joint_ranges]) for _ in range(2))
+    viewer = CArmViewer(MOTORIZED, q=q)
+    np.testing.assert_allclose(node_transform(viewer, "carmkin/cone"), MOTORIZED.fk(q), atol=1e-9)
+    viewer.show_ghost(q_to)
+    np.testing.assert_allclose(node_transform(viewer, "carmkin/ghost/cone"), MOTORIZED.fk(q_to), atol=1e-9)
+    assert viewer.animate(q_to, frames=3).shape == (3, 11)
+    np.testing.assert_allclose(node_transform(viewer, "carmkin/cone"), MOTORIZED.fk(q_to), atol=1e-9)
+    pairs = viewer.show_distances(q)
+    assert [(d.part, d.obstacle) for d in pairs] == list(CollisionScene.from_system(MOTORIZED).pairs)
+
+
 def test_scene_frame_is_upright_table_frame():
     """Root node: a pure rotation taking the vertical axis (cart Z) to meshcat's Z (up)."""
     viewer = CArmViewer(PRESET)
@@ -275,11 +296,17 @@ def test_animation_tracks_run_from_start_to_target_and_come_after_the_objects():
 
 
 # --- distances ----------------------------------------------------------------------------------------
-def test_distance_pairs_are_carm_parts_against_table_and_floor():
+def test_distance_pairs_are_the_collision_policy():
+    """One policy: the viewer colours exactly the pairs the planner and the validity report check."""
     checker = DistanceChecker(PRESET)
-    pairs = {(d.part, d.obstacle) for d in checker.distances(Q_MID)}
-    parts = {g.name for g in checker.collision_model.geometryObjects} - {"table_0", "floor_0"}
-    assert pairs == {(p, o) for p in parts for o in ("table_0", "floor_0")} - {("carm_cart_0", "floor_0")}
+    pairs = [(d.part, d.obstacle) for d in checker.distances(Q_MID)]
+    assert pairs == list(CollisionScene.from_system(PRESET).pairs)
+    # and that policy, written out: moving C-arm parts against the table top and the floor
+    moving = {"dh_frame_2", "dh_frame_3", "dh_frame_4", "dh_frame_5", "dh_frame_6", "xray_source", "detector"}
+    parts = {g.name for g in checker.collision_model.geometryObjects if link_of(g.name) in moving}
+    expected = {(p, o) for p in parts for o in ("table_0", "floor_0")}
+    expected -= {(p, o) for p, o in expected if (link_of(p), link_of(o)) in set(CARM_EXCLUDED_PAIRS)}
+    assert set(pairs) == expected and ("dh_frame_2_0", "floor_0") not in expected
 
 
 @settings(max_examples=25)
