@@ -31,6 +31,7 @@ from carmkin.model.system import CArmSystem
 from carmkin.model.table_joints import CHAIN_ORDER, KINDS, standard_joints
 
 from .schema import check_file, check_merged
+from .writer import save_preset, to_toml
 
 _MM = 1e-3
 _CARM_JOINTS = {"vertical": _MM, "wigwag": math.pi / 180, "horizontal": _MM, "angular": math.pi / 180,
@@ -150,7 +151,7 @@ def _resolve_base(data: dict, provenance: dict, label: str, depth: int = 0) -> t
     """Merge a preset over the built-in preset named by its ``base`` key.
 
     Sections merge key by key, except ``[setup]``, which a preset replaces whole (its two forms are
-    alternatives, :data:`.schema.SETUP_FORMS`).
+    alternatives, :data:`.schema.SETUP_FORMS`); ``name`` and ``description`` are not inherited.
     """
     if "base" not in data:
         return data, provenance
@@ -159,10 +160,12 @@ def _resolve_base(data: dict, provenance: dict, label: str, depth: int = 0) -> t
     base_label = f"{_builtin(data['base'], 'base preset')}.toml"
     base, base_provenance = _resolve_base(*_parse((_preset_dir() / base_label).read_text(), base_label),
                                           base_label, depth + 1)
+    base = {k: v for k, v in base.items() if k not in ("name", "description")}  # these describe one file
     if "setup" in data:
         base = {k: v for k, v in base.items() if k != "setup"}
         base_provenance = {k: v for k, v in base_provenance.items() if not k.startswith("setup.")}
     merged = _merge(base, {k: v for k, v in data.items() if k != "base"})
+    base_provenance = {k: v for k, v in base_provenance.items() if "." in k}
     return merged, {**base_provenance, **{k: v for k, v in provenance.items() if k != "base"}}
 
 
