@@ -295,3 +295,12 @@ def test_a_system_round_trips_through_toml(system):
 def test_builtin_presets_round_trip_through_a_saved_file(name, tmp_path):
     system = carmkin.load_preset(name)
     assert carmkin.load_preset(save_preset(system, tmp_path / "copy.toml")) == system
+
+
+def test_system_from_dict_is_as_strict_as_a_file():
+    from carmkin.presets import system_from_dict
+
+    with pytest.raises(PresetError, match=r"<dict>: unknown key 'a1_mn' in \[carm\]; did you mean 'a1_mm'\?"):
+        system_from_dict({"base": "siremobile-iso-c3d", "carm": {"a1_mn": 50.0}})
+    system = system_from_dict({"base": "siremobile-iso-c3d", "carm": {"a1_mm": 50.0}})
+    assert system.carm.a1 == pytest.approx(0.05) and system.name == "custom"

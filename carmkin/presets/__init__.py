@@ -89,10 +89,17 @@ def preset_provenance(name_or_path: str | Path) -> dict[str, Provenance]:
     return _read(name_or_path)[1]
 
 
-def _build(data: dict, provenance: dict[str, Provenance], label: str) -> CArmSystem:
-    check_merged(data, {key: p.file for key, p in provenance.items()})
+def system_from_dict(data: dict, default_name: str = "custom", source: str = "<dict>") -> CArmSystem:
+    """Build a :class:`CArmSystem` from a parsed preset (mm/deg keys, see ``siremobile-iso-c3d.toml``),
+    checked as strictly as a file; ``source`` names it in error messages."""
+    check_file(data, source)
+    return _build(*_resolve_base(data, {}, source), source, default_name)
+
+
+def _build(data: dict, provenance: dict[str, Provenance], label: str, default_name: str | None = None) -> CArmSystem:
+    check_merged(data, {key: p.file for key, p in provenance.items()}, label)
     try:
-        return system_from_dict(data, default_name=Path(label).stem)
+        return _system(data, default_name or Path(label).stem)
     except PresetError:
         raise
     except InvalidParameterError as exc:  # a cross-key check of the model (e.g. the setup axes)
@@ -257,8 +264,8 @@ def _table_joints(section: dict) -> tuple:
                            _mm3(_get(section, "pivot_mm", "table.joints"), "pivot_mm"))
 
 
-def system_from_dict(data: dict, default_name: str = "custom") -> CArmSystem:
-    """Build a :class:`CArmSystem` from a parsed preset (mm/deg keys, see ``siremobile-iso-c3d.toml``)."""
+def _system(data: dict, default_name: str) -> CArmSystem:
+    """The system of a checked, merged preset."""
     carm = _carm(_get(data, "carm", "top level"))
     setup = _setup(_get(data, "setup", "top level"), carm)
     t = data.get("table", {})

@@ -163,10 +163,10 @@ def check_value(rule: Rule, value, what: str) -> None:
             raise PresetError(str(exc)) from None
 
 
-def check_merged(data: dict, origin: dict[str, str]) -> None:
+def check_merged(data: dict, origin: dict[str, str], file: str) -> None:
     """Cross-key checks on a preset with its base merged in: each joint's min ≤ max, one ``[setup]`` form.
 
-    ``origin`` maps dotted keys to the file each value came from.
+    ``origin`` maps dotted keys to the file each value came from (default: ``file``).
     """
     for section, rules in SECTIONS.items():
         values = _section(data, section)
@@ -176,13 +176,13 @@ def check_merged(data: dict, origin: dict[str, str]) -> None:
             upper = key.replace("_min_", "_max_")
             unit = key.rpartition("_")[2]
             if upper in values and values[key] > values[upper]:
-                raise PresetError(f"{origin.get(_join(section, key), '?')}: [{section}] {key} = {values[key]:g} {unit} "
+                raise PresetError(f"{origin.get(_join(section, key), file)}: [{section}] {key} = {values[key]:g} {unit} "
                                   f"> {upper} = {values[upper]:g} {unit}")
     setup = data.get("setup", {})
     used = [form for form in SETUP_FORMS if any(k in setup for k in form)]
     if len(used) > 1:
-        file = next((origin[f"setup.{key}"] for key in setup if f"setup.{key}" in origin), "?")
-        raise PresetError(f"{file}: [setup] mixes the table pose "
+        where = next((origin[f"setup.{key}"] for key in setup if f"setup.{key}" in origin), file)
+        raise PresetError(f"{where}: [setup] mixes the table pose "
                           f"({', '.join(SETUP_FORMS[0])}) with the DH constants ({', '.join(SETUP_FORMS[1])}); "
                           "give one of the two")
 
