@@ -70,7 +70,7 @@ _EDITS = [
     (BUILTIN, "orbital_max_deg = 95.0", "orbital_max_deg = 1e17", r"orbital_max_deg = 1e\+17 deg is outside \[-360, 360\] deg"),
     # malformed TOML, with the file and line
     (BUILTIN, "orbital_offset_mm = 625.0", "orbital_offset_mm = ", r"user\.toml: malformed TOML: .* line 10"),
-    (BUILTIN, "[carm]\n", "[carm]\na1_mm = 1.0\n", r"malformed TOML: Key \"a1_mm\" already exists"),
+    (BUILTIN, "[carm]\n", "[carm]\na1_mm = 1.0\n", r"user\.toml: malformed TOML: .* \(at line 12, column 12\)"),
 ]
 
 
@@ -151,9 +151,9 @@ def test_provenance_names_the_file_each_value_came_from(tmp_path):
     provenance = preset_provenance(path)
     assert provenance["carm.a1_mm"].file == str(path) and provenance["carm.a1_mm"].kind == "comment"
     assert provenance["carm.a1_mm"].note == "measured on our unit"
-    assert provenance["carm.length_offset_mm"].file == "siremobile-iso-c3d.toml"
+    assert provenance["carm.length_offset_mm"].file.endswith("/siremobile-iso-c3d.toml")
     assert provenance["carm.length_offset_mm"].kind == "source"
-    assert provenance["table.joints.pivot_mm"].file == "siremobile-iso-c3d-motorized-table.toml"
+    assert provenance["table.joints.pivot_mm"].file.endswith("/siremobile-iso-c3d-motorized-table.toml")
     assert provenance["table.joints.pivot_mm"].kind == "assumption"
 
 

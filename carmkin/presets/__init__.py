@@ -10,13 +10,13 @@ from __future__ import annotations
 
 import difflib
 import math
+import tomllib
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
 import numpy as np
 import tomlkit
-from tomlkit.exceptions import TOMLKitError
 
 from carmkin.errors import InvalidParameterError, PresetError, UnknownPresetError
 from carmkin.model import kinematics
@@ -45,7 +45,7 @@ class Provenance:
     """Where one preset value came from.
 
     Attributes:
-        file: the preset file that set the value (a built-in preset as ``NAME.toml``).
+        file: the path of the preset file that set the value (a base's keys name the base's file).
         key: the dotted key, e.g. ``"carm.a1_mm"``.
         kind: ``"source"`` (comment ``# source: ...``, a cited source), ``"assumption"`` (``# assumption:
             ...``), ``"comment"`` (any other comment) or ``"none"`` (no comment).
@@ -74,30 +74,42 @@ def load_preset(name_or_path: str | Path) -> CArmSystem:
     malformed TOML, an unknown section or key, a wrong type or a value out of bounds, and
     :class:`~carmkin.errors.UnknownPresetError` for an unknown preset or ``base``.
     """
-    data, provenance, label = _read(name_or_path)
-    return _build(data, provenance, label)
+    data, origin, label = _read(name_or_path)
+    return _build(data, origin, label)
 
 
 def parse_preset(text: str, source: str = "<text>") -> CArmSystem:
     """Build a system from the text of a preset file; ``source`` names it in error messages."""
-    data, provenance = _resolve_base(*_parse(text, source), source)
-    return _build(data, provenance, source)
-
-
-def preset_provenance(name_or_path: str | Path) -> dict[str, Provenance]:
-    """Provenance of every value of a preset (its base's included), by dotted key (``"carm.a1_mm"``)."""
-    return _read(name_or_path)[1]
+    return _build(*_resolve_base(*_parse(text, source), source), source)
 
 
 def system_from_dict(data: dict, default_name: str = "custom", source: str = "<dict>") -> CArmSystem:
     """Build a :class:`CArmSystem` from a parsed preset (mm/deg keys, see ``siremobile-iso-c3d.toml``),
     checked as strictly as a file; ``source`` names it in error messages."""
     check_file(data, source)
-    return _build(*_resolve_base(data, {}, source), source, default_name)
+    return _build(*_resolve_base(data, _origin(data, source), source), source, default_name)
 
 
-def _build(data: dict, provenance: dict[str, Provenance], label: str, default_name: str | None = None) -> CArmSystem:
-    check_merged(data, {key: p.file for key, p in provenance.items()}, label)
+def preset_provenance(name_or_path: str | Path) -> dict[str, Provenance]:
+    """Provenance of every value of a preset (its base's included), by dotted key (``"carm.a1_mm"``).
+
+    Read from each key's trailing comment in the file that set it (parsed with tomlkit, which keeps them).
+    """
+    _, origin, _ = _read(name_or_path)
+    comments = {file: _comments(Path(file).read_text()) for file in set(origin.values())}
+    provenance = {}
+    for key, file in origin.items():
+        comment = comments[file].get(key, "")
+        kind, _, note = comment.partition(":")
+        kind = kind.strip().lower()
+        if kind not in ("source", "assumption"):
+            kind, note = ("comment" if comment else "none"), comment
+        provenance[key] = Provenance(file, key, kind, note.strip())
+    return provenance
+
+
+def _build(data: dict, origin: dict[str, str], label: str, default_name: str | None = None) -> CArmSystem:
+    check_merged(data, origin, label)
     try:
         return _system(data, default_name or Path(label).stem)
     except PresetError:
@@ -106,74 +118,78 @@ def _build(data: dict, provenance: dict[str, Provenance], label: str, default_na
         raise PresetError(f"{label}: {exc}") from None
 
 
-def _read(name_or_path: str | Path) -> tuple[dict, dict[str, Provenance], str]:
+def _read(name_or_path: str | Path) -> tuple[dict, dict[str, str], str]:
+    """The merged values of a preset, the file each dotted key came from, and the preset's file label."""
     path = Path(name_or_path)
     if path.suffix == ".toml":
         if not path.is_file():
             raise UnknownPresetError(f"no preset file {str(path)!r}")
-        label, text = str(path), path.read_text()
+        label = str(path)
     else:
-        label, text = f"{_builtin(str(name_or_path), 'preset')}.toml", ""
-        text = (_preset_dir() / label).read_text()
-    return (*_resolve_base(*_parse(text, label), label), label)
+        label = _builtin_file(str(name_or_path), "preset")
+    return (*_resolve_base(*_parse(Path(label).read_text(), label), label), label)
 
 
-def _builtin(name: str, what: str) -> str:
+def _builtin_file(name: str, what: str) -> str:
+    """The path of the built-in preset ``name`` (its file label in messages and provenance)."""
     names = list_presets()
     if name not in names:
         hint = difflib.get_close_matches(name, names, n=1)
         raise UnknownPresetError(f"unknown {what} {name!r}" + (f"; did you mean {hint[0]!r}?" if hint else "")
                                  + f"; available: {', '.join(names)}")
-    return name
+    return str(_preset_dir() / f"{name}.toml")
 
 
-def _parse(text: str, label: str) -> tuple[dict, dict[str, Provenance]]:
-    """Values (checked by :func:`.schema.check_file`) and the provenance of each, from one file's text."""
+def _parse(text: str, label: str) -> tuple[dict, dict[str, str]]:
+    """One file's values, checked by :func:`.schema.check_file`, and its dotted keys mapped to ``label``."""
     try:
-        document = tomlkit.parse(text)
-    except TOMLKitError as exc:  # the message says "at line L col C"
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:  # the message says "(at line L, column C)"
         raise PresetError(f"{label}: malformed TOML: {exc}") from None
-    data = document.unwrap()
     check_file(data, label)
-    provenance: dict[str, Provenance] = {}
+    return data, _origin(data, label)
+
+
+def _origin(data: dict, label: str, prefix: str = "") -> dict[str, str]:
+    """Every dotted key of ``data`` (leaves only) mapped to ``label``."""
+    out = {}
+    for key, value in data.items():
+        out.update(_origin(value, label, f"{prefix}{key}.") if isinstance(value, dict) else {prefix + key: label})
+    return out
+
+
+def _comments(text: str) -> dict[str, str]:
+    """Each dotted key's trailing comment (without ``#``) in a preset's text."""
+    out = {}
 
     def walk(table, prefix: str) -> None:
         for key, item in table.items():
             if isinstance(item, dict):
                 walk(item, f"{prefix}{key}.")
-                continue
-            comment = item.trivia.comment.lstrip("#").strip()
-            kind, _, rest = comment.partition(":")
-            kind = kind.strip().lower()
-            if kind in ("source", "assumption"):
-                provenance[prefix + key] = Provenance(label, prefix + key, kind, rest.strip())
             else:
-                provenance[prefix + key] = Provenance(label, prefix + key, "comment" if comment else "none", comment)
+                out[prefix + key] = item.trivia.comment.lstrip("#").strip()
 
-    walk(document, "")
-    return data, provenance
+    walk(tomlkit.parse(text), "")
+    return out
 
 
-def _resolve_base(data: dict, provenance: dict, label: str, depth: int = 0) -> tuple[dict, dict]:
-    """Merge a preset over the built-in preset named by its ``base`` key.
+def _resolve_base(data: dict, origin: dict[str, str], label: str, depth: int = 0) -> tuple[dict, dict[str, str]]:
+    """Merge a preset over the built-in preset named by its ``base`` key; also merge the keys' origins.
 
     Sections merge key by key, except ``[setup]``, which a preset replaces whole (its two forms are
     alternatives, :data:`.schema.SETUP_FORMS`); ``name`` and ``description`` are not inherited.
     """
     if "base" not in data:
-        return data, provenance
+        return data, origin
     if depth >= MAX_BASE_DEPTH:
         raise PresetError(f"{label}: 'base' chain longer than {MAX_BASE_DEPTH} (a cycle?)")
-    base_label = f"{_builtin(data['base'], 'base preset')}.toml"
-    base, base_provenance = _resolve_base(*_parse((_preset_dir() / base_label).read_text(), base_label),
-                                          base_label, depth + 1)
-    base = {k: v for k, v in base.items() if k not in ("name", "description")}  # these describe one file
-    if "setup" in data:
-        base = {k: v for k, v in base.items() if k != "setup"}
-        base_provenance = {k: v for k, v in base_provenance.items() if not k.startswith("setup.")}
+    base_label = _builtin_file(data["base"], "base preset")
+    base, base_origin = _resolve_base(*_parse(Path(base_label).read_text(), base_label), base_label, depth + 1)
+    dropped = ("name", "description", "setup") if "setup" in data else ("name", "description")
+    base = {k: v for k, v in base.items() if k not in dropped}
+    base_origin = {k: v for k, v in base_origin.items() if k.partition(".")[0] in base}
     merged = _merge(base, {k: v for k, v in data.items() if k != "base"})
-    base_provenance = {k: v for k, v in base_provenance.items() if "." in k}
-    return merged, {**base_provenance, **{k: v for k, v in provenance.items() if k != "base"}}
+    return merged, {**base_origin, **{k: v for k, v in origin.items() if k != "base"}}
 
 
 def _merge(base: dict, override: dict) -> dict:
