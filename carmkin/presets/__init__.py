@@ -16,7 +16,6 @@ from importlib import resources
 from pathlib import Path
 
 import numpy as np
-import tomlkit
 
 from carmkin.errors import InvalidParameterError, PresetError, UnknownPresetError
 from carmkin.model import kinematics
@@ -160,6 +159,8 @@ def _origin(data: dict, label: str, prefix: str = "") -> dict[str, str]:
 
 def _comments(text: str) -> dict[str, str]:
     """Each dotted key's trailing comment (without ``#``) in a preset's text."""
+    import tomlkit  # only here: comments and writing need it, loading does not
+
     out = {}
 
     def walk(table, prefix: str) -> None:

@@ -11,7 +11,6 @@ import math
 from dataclasses import fields
 from pathlib import Path
 
-import tomlkit
 
 from carmkin.errors import PresetError
 from carmkin.model.params import PRISMATIC, BodyGeometry, JointRange
@@ -23,6 +22,8 @@ from .schema import MM
 
 def to_toml(system: CArmSystem) -> str:
     """The preset text of ``system``: ``[carm]``, ``[setup]`` (DH constants), ``[table]``, ``[body]``."""
+    import tomlkit  # only here: loading does not need it
+
     if not isinstance(system, CArmSystem):
         raise PresetError(f"to_toml: system must be a CArmSystem, got {type(system).__name__}")
     carm = system.carm
