@@ -67,7 +67,7 @@ _EDITS = [
     # values in the preset's units
     (BUILTIN, "wigwag_min_deg = -10.0", "wigwag_min_deg = 30.0",
      r"\[carm\] wigwag_min_deg = 30 deg > wigwag_max_deg = 10 deg"),
-    (BUILTIN, "orbital_max_deg = 95.0", "orbital_max_deg = 1e17", r"orbital_max_deg = 1e\+17 deg is outside \[-360, 360\] deg"),
+    (BUILTIN, "orbital_max_deg = 95.0", "orbital_max_deg = 1e17", r"orbital_max_deg must be within \[-360, 360\] deg, got 1e\+17"),
     # malformed TOML, with the file and line
     (BUILTIN, "orbital_offset_mm = 625.0", "orbital_offset_mm = ", r"user\.toml: malformed TOML: .* line 10"),
     (BUILTIN, "[carm]\n", "[carm]\na1_mm = 1.0\n", r"user\.toml: malformed TOML: .* \(at line 12, column 12\)"),
@@ -107,7 +107,7 @@ def test_non_finite_and_huge_values_are_refused_in_the_presets_units(value, tmp_
     with pytest.raises(PresetError, match=r"user\.toml: \[carm\] a1_mm") as info:
         _load(BUILTIN.replace("a1_mm = 0.0", f"a1_mm = {value}"), tmp_path)
     if "n" not in value:  # finite: the bound is quoted in mm
-        assert "outside [-10000, 10000] mm" in str(info.value)
+        assert "must be within [-10000, 10000] mm" in str(info.value)
 
 
 def test_base_inheritance_keeps_working_and_an_unknown_base_is_typed(tmp_path):
@@ -199,16 +199,16 @@ def test_setup_refuses_junk_without_a_warning(field, value):
 
 
 def test_absurd_magnitudes_are_refused_with_the_bound():
-    with pytest.raises(InvalidParameterError, match=r"CArmGeometry.a1 = 1e\+16 m is outside \[-10, 10\] m"):
+    with pytest.raises(InvalidParameterError, match=r"CArmGeometry.a1 must be within \[-10, 10\] m, got 1e\+16"):
         replace(PRESET.carm, a1=1e16)
-    with pytest.raises(InvalidParameterError, match=r"orbital.lower = -1e\+17 is outside \[-10, 10\]"):
+    with pytest.raises(InvalidParameterError, match=r"orbital.lower must be within \[-10, 10\], got -1e\+17"):
         carmkin.JointRange(-1e17, 1e17, "orbital")
-    with pytest.raises(InvalidParameterError, match=r"CArmGeometry.orbital.lower = -7 rad is outside \[-6.28319, 6.28319\] rad"):
+    with pytest.raises(InvalidParameterError, match=r"CArmGeometry.orbital.lower must be within \[-6.28319, 6.28319\] rad, got -7"):
         replace(PRESET.carm, orbital=carmkin.JointRange(-7.0, 7.0, "orbital"))
     with pytest.raises(InvalidParameterError, match=r"detector_columns must be an integer in \[1, 100000\]"):
         replace(PRESET.carm, detector_columns=10**9)
     joints = standard_joints({"table_tilt": carmkin.JointRange(-7.0, 7.0, "table_tilt")}, (0, -1, 0), (0, 0.4, 0))
-    with pytest.raises(InvalidParameterError, match=r"CArmSystem.table_tilt.lower = -7 rad"):
+    with pytest.raises(InvalidParameterError, match=r"CArmSystem.table_tilt.lower must be within \[-6.28319, 6.28319\] rad, got -7"):
         PRESET.replace(table=replace(PRESET.table, joints=joints))
 
 

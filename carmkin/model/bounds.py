@@ -44,13 +44,12 @@ def check_real(what: str, value, low: float = -math.inf, high: float = math.inf,
     if isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iuf":
         value = value[()]
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
-        raise InvalidParameterError(f"{what} must be a real number{_in(unit)}, got {value!r}")
+        raise InvalidParameterError(f"{what} must be a real number{f' ({unit})' if unit else ''}, got {value!r}")
     value = float(value)
     if not math.isfinite(value):
         raise InvalidParameterError(f"{what} must be finite, got {value}")
-    if not low <= value <= high:
-        u = f" {unit}" if unit else ""
-        raise InvalidParameterError(f"{what} = {value:g}{u} is outside [{low:g}, {high:g}]{u}")
+    if not low <= value <= high:  # the wording of carmkin.validation.real_scalar
+        raise InvalidParameterError(f"{what} must be within [{low:g}, {high:g}]{f' {unit}' if unit else ''}, got {value:g}")
     return value
 
 
@@ -72,6 +71,3 @@ def check_joint_limits(joint_range, prismatic: bool, owner: str) -> None:
     for side in ("lower", "upper"):
         check_real(f"{owner}.{joint_range.name}.{side}", getattr(joint_range, side), -bound, bound, unit)
 
-
-def _in(unit: str) -> str:
-    return f" (in {unit})" if unit else ""
