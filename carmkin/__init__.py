@@ -8,6 +8,8 @@ from carmkin.errors import (
     InvalidConfigurationError,
     InvalidParameterError,
     InvalidPoseError,
+    NearSingularSetupError,
+    PresetError,
     UnknownPresetError,
 )
 from carmkin.model.params import (
@@ -31,6 +33,8 @@ __all__ = [
     "InvalidParameterError",
     "InvalidPoseError",
     "JointRange",
+    "NearSingularSetupError",
+    "PresetError",
     "TableGeometry",
     "TableSetup",
     "UnknownPresetError",

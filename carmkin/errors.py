@@ -13,8 +13,16 @@ class InvalidParameterError(CarmkinError):
     """A geometry, limit or setup value is not acceptable (NaN, negative length, lower > upper, ...)."""
 
 
-class UnknownPresetError(CarmkinError, KeyError):
-    """No preset file of that name ships with carmkin."""
+class PresetError(InvalidParameterError):
+    """A preset file is malformed: bad TOML, an unknown section or key, a wrong type or value.
+
+    The message names the file, the key and (for a misspelling) the nearest valid name; values are quoted
+    in the preset's units (mm, deg).
+    """
+
+
+class UnknownPresetError(PresetError, KeyError):
+    """No preset file of that name ships with carmkin (also for an unknown ``base = "..."``)."""
 
     def __str__(self) -> str:  # KeyError would quote the message
         return str(self.args[0])
@@ -22,6 +30,10 @@ class UnknownPresetError(CarmkinError, KeyError):
 
 class InvalidConfigurationError(CarmkinError):
     """A joint configuration has the wrong shape or non-finite values."""
+
+
+class NearSingularSetupError(InvalidParameterError):
+    """The table axis is within a small angle of the C-arm's vertical axis (near singular case a)."""
 
 
 class InvalidPoseError(CarmkinError):

@@ -64,9 +64,9 @@ def setups(draw, min_sin_gamma1: float = 0.05) -> carmkin.TableSetup:
     rejected: near singular case (a) the common normal runs off to infinity (D2, D3 ~ 1/sin γ1), which is
     no physical setup and makes absolute tolerances meaningless.
     """
-    setup = carmkin.TableSetup.from_pose(draw(poses()))
-    assume(abs(math.sin(setup.gamma1)) >= min_sin_gamma1)
-    return setup
+    T = draw(poses())
+    assume(math.hypot(T[0, 2], T[1, 2]) >= min_sin_gamma1)  # |Z0 x Z1| = |sin γ1|, Z1 = base Z
+    return carmkin.TableSetup.from_pose(T)
 
 
 @st.composite

@@ -95,3 +95,33 @@ def test_cli_reports_unknown_preset_as_an_error(capsys):
 def test_geometry_requires_joint_ranges():
     with pytest.raises(InvalidParameterError, match="vertical"):
         CArmGeometry(1.0, 0.5, vertical=(0.0, 0.4))
+
+
+def test_preset_errors_are_typed_carmkin_errors():
+    from carmkin.errors import NearSingularSetupError, PresetError
+
+    assert issubclass(PresetError, InvalidParameterError) and issubclass(UnknownPresetError, PresetError)
+    assert issubclass(NearSingularSetupError, InvalidParameterError)
+    with pytest.raises(UnknownPresetError, match=r"did you mean 'siremobile-iso-c3d'\?"):
+        carmkin.load_preset("siremobile-iso-c3")
+    with pytest.raises(UnknownPresetError, match=r"no preset file 'missing/x.toml'"):
+        carmkin.load_preset("missing/x.toml")
+
+
+@pytest.mark.parametrize("value", [1j, np.complex128(0.2), "0.2", True, None, [0.2], np.array([0.2])])
+def test_joint_range_refuses_non_real_values_without_a_warning(value):
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(InvalidParameterError, match=r"wigwag.upper must be a real number"):
+            JointRange(0.0, value, "wigwag")
+
+
+def test_cli_reports_a_misspelled_preset_key_in_one_line(tmp_path, capsys):
+    text = (carmkin.presets._preset_dir() / "siremobile-iso-c3d.toml").read_text()
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text.replace("a1_mm = 0.0", "a1_mn = 50.0"))
+    assert main(["urdf", "--preset", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert "unknown key 'a1_mn' in [carm]; did you mean 'a1_mm'?" in err and "Traceback" not in err

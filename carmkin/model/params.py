@@ -11,30 +11,26 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
-from carmkin.errors import InvalidParameterError
+from carmkin.errors import InvalidParameterError, NearSingularSetupError
 from carmkin.transforms import check_rigid_transform
+
+from .bounds import (
+    MAX_ANGLE,
+    MAX_LENGTH,
+    MAX_PIXELS,
+    MAX_SETUP_DISTANCE,
+    NEAR_PARALLEL_SIN,
+    PARALLEL_AXES_SIN,
+    check_count,
+    check_joint_limits,
+    check_length,
+    check_real,
+)
 
 #: Joint names of the 6-DOF chain, in the order of ``q = [d0, d1, theta2, d3, theta4, theta5]``.
 JOINT_NAMES = ("table_translation", "vertical", "wigwag", "horizontal", "angular", "orbital")
 #: ``True`` where the joint of :data:`JOINT_NAMES` is prismatic (m), ``False`` where revolute (rad).
 PRISMATIC = (True, True, False, True, False, False)
-
-
-def _check_finite(owner: str, name: str, value) -> float:
-    try:
-        value = float(value)
-    except (TypeError, ValueError) as exc:
-        raise InvalidParameterError(f"{owner}.{name} must be a number, got {value!r}") from exc
-    if not math.isfinite(value):
-        raise InvalidParameterError(f"{owner}.{name} must be finite, got {value}")
-    return value
-
-
-def _check_positive(owner: str, name: str, value) -> float:
-    value = _check_finite(owner, name, value)
-    if value <= 0.0:
-        raise InvalidParameterError(f"{owner}.{name} must be > 0, got {value}")
-    return value
 
 
 @dataclass(frozen=True)
@@ -46,8 +42,11 @@ class JointRange:
     name: str = "joint"
 
     def __post_init__(self) -> None:
-        lower = _check_finite(self.name, "lower", self.lower)
-        upper = _check_finite(self.name, "upper", self.upper)
+        if not isinstance(self.name, str):
+            raise InvalidParameterError(f"JointRange.name must be a string, got {self.name!r}")
+        # ±MAX_LENGTH here (m or rad); the owner, who knows the joint's kind, narrows revolute ranges to ±2π.
+        lower = check_real(f"{self.name}.lower", self.lower, -MAX_LENGTH, MAX_LENGTH)
+        upper = check_real(f"{self.name}.upper", self.upper, -MAX_LENGTH, MAX_LENGTH)
         if lower > upper:
             raise InvalidParameterError(f"{self.name}: lower limit {lower} > upper limit {upper}")
         object.__setattr__(self, "lower", lower)
@@ -95,18 +94,20 @@ class CArmGeometry:
     def __post_init__(self) -> None:
         owner = "CArmGeometry"
         for name in ("length_offset", "orbital_offset", "source_to_detector", "detector_width", "detector_height"):
-            object.__setattr__(self, name, _check_positive(owner, name, getattr(self, name)))
+            object.__setattr__(self, name, check_length(f"{owner}.{name}", getattr(self, name), positive=True))
         for name in ("a1", "a2"):
-            object.__setattr__(self, name, _check_finite(owner, name, getattr(self, name)))
+            object.__setattr__(self, name, check_length(f"{owner}.{name}", getattr(self, name)))
         for name in ("detector_columns", "detector_rows"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value <= 0:
-                raise InvalidParameterError(f"{owner}.{name} must be a positive integer, got {value!r}")
-        for name in ("vertical", "wigwag", "horizontal", "angular", "orbital"):
+            object.__setattr__(self, name, check_count(f"{owner}.{name}", getattr(self, name)))
+        for name, prismatic in zip(("vertical", "wigwag", "horizontal", "angular", "orbital"), PRISMATIC[1:]):
             if not isinstance(getattr(self, name), JointRange):
                 raise InvalidParameterError(f"{owner}.{name} must be a JointRange, got {getattr(self, name)!r}")
+            check_joint_limits(getattr(self, name), prismatic, owner)
         if self.principal_point is not None:
-            u, v = (_check_finite(owner, "principal_point", x) for x in self.principal_point)
+            if isinstance(self.principal_point, (str, bytes)) or len(self.principal_point) != 2:
+                raise InvalidParameterError(f"{owner}.principal_point must be (u, v) in px, got {self.principal_point!r}")
+            u, v = (check_real(f"{owner}.principal_point", x, -MAX_PIXELS, MAX_PIXELS, "px")
+                    for x in self.principal_point)
             object.__setattr__(self, "principal_point", (u, v))
 
     @property
@@ -152,7 +153,8 @@ class TableSetup:
 
     def __post_init__(self) -> None:
         for f in fields(self):
-            object.__setattr__(self, f.name, _check_finite("TableSetup", f.name, getattr(self, f.name)))
+            bound, unit = (MAX_ANGLE, "rad") if f.name.startswith("gamma") else (MAX_SETUP_DISTANCE, "m")
+            object.__setattr__(self, f.name, check_real(f"TableSetup.{f.name}", getattr(self, f.name), -bound, bound, unit))
 
     @classmethod
     def from_pose(cls, T_base_table) -> "TableSetup":
@@ -162,13 +164,23 @@ class TableSetup:
         the cart with Z along the vertical axis and origin where the vertical joint is zero (frame 1 of the
         5-DOF model, Fig. 4.1). X1 is the common normal from the table axis Z0 to the vertical axis Z1
         (DH rule); when the axes are parallel (singular case a) the normal through the table origin is
-        taken, and X1 = X0 when they coincide.
+        taken, and X1 = X0 when they coincide. Axes within a small angle of parallel (sine between
+        :data:`~carmkin.model.bounds.PARALLEL_AXES_SIN` and :data:`~carmkin.model.bounds.NEAR_PARALLEL_SIN`)
+        raise :class:`~carmkin.errors.NearSingularSetupError`: there the common normal runs off to
+        infinity and cannot be computed to any useful precision.
         """
         T = check_rigid_transform(T_base_table, "T_base_table")
         p0, x0, z0 = T[:3, 3], T[:3, 0], T[:3, 2]
         z1 = np.array([0.0, 0.0, 1.0])
         normal = np.cross(z0, z1)
-        if np.linalg.norm(normal) > 1e-12:
+        sin_angle = float(np.linalg.norm(normal))
+        if PARALLEL_AXES_SIN < sin_angle < NEAR_PARALLEL_SIN:
+            raise NearSingularSetupError(
+                f"T_base_table: the table axis Z0 is {math.asin(sin_angle):.3g} rad "
+                f"({math.degrees(math.asin(sin_angle)):.3g} deg) from the C-arm's vertical axis, nearly "
+                f"parallel (singular case a); need exactly parallel (sine <= {PARALLEL_AXES_SIN:g}) or at "
+                f"least {math.asin(NEAR_PARALLEL_SIN):.3g} rad apart")
+        if sin_angle > PARALLEL_AXES_SIN:
             x1 = normal / np.linalg.norm(normal)
             # Feet of the common normal: p0 + t0 z0 on Z0 and t1 z1 on Z1 with (t1 z1 - p0 - t0 z0) ∥ x1.
             A = np.column_stack((z0, -z1, x1))
@@ -206,12 +218,11 @@ class TableGeometry:
     def __post_init__(self) -> None:
         if not isinstance(self.translation, JointRange):
             raise InvalidParameterError(f"TableGeometry.translation must be a JointRange, got {self.translation!r}")
-        size = tuple(_check_positive("TableGeometry", "top_size", v) for v in self.top_size)
-        center = tuple(_check_finite("TableGeometry", "top_center", v) for v in self.top_center)
-        if len(size) != 3 or len(center) != 3:
-            raise InvalidParameterError("TableGeometry.top_size and top_center need three values each")
-        object.__setattr__(self, "top_size", size)
-        object.__setattr__(self, "top_center", center)
+        check_joint_limits(self.translation, True, "TableGeometry")
+        object.__setattr__(self, "top_size", _check_lengths("TableGeometry.top_size", self.top_size, positive=True))
+        object.__setattr__(self, "top_center", _check_lengths("TableGeometry.top_center", self.top_center))
+        if isinstance(self.joints, (str, bytes)) or not hasattr(self.joints, "__iter__"):
+            raise InvalidParameterError(f"TableGeometry.joints must be a tuple of TableJoint, got {self.joints!r}")
         object.__setattr__(self, "joints", tuple(self.joints))
         names = [getattr(j, "name", None) for j in self.joints]
         if len(set(names)) != len(names) or not all(hasattr(j, "inverse_motion") for j in self.joints):
@@ -242,11 +253,15 @@ class BodyGeometry:
 
     def __post_init__(self) -> None:
         owner = "BodyGeometry"
-        object.__setattr__(self, "floor_height", _check_finite(owner, "floor_height", self.floor_height))
+        object.__setattr__(self, "floor_height", check_length(f"{owner}.floor_height", self.floor_height))
         for name in ("column_width", "c_thickness", "c_depth", "detector_thickness"):
-            object.__setattr__(self, name, _check_positive(owner, name, getattr(self, name)))
+            object.__setattr__(self, name, check_length(f"{owner}.{name}", getattr(self, name), positive=True))
         for name in ("cart_size", "source_housing"):
-            values = tuple(_check_positive(owner, name, v) for v in getattr(self, name))
-            if len(values) != 3:
-                raise InvalidParameterError(f"{owner}.{name} needs three values, got {len(values)}")
-            object.__setattr__(self, name, values)
+            object.__setattr__(self, name, _check_lengths(f"{owner}.{name}", getattr(self, name), positive=True))
+
+
+def _check_lengths(what: str, values, positive: bool = False) -> tuple[float, float, float]:
+    """Three lengths (m), each checked by :func:`~carmkin.model.bounds.check_length`."""
+    if isinstance(values, (str, bytes)) or not hasattr(values, "__len__") or len(values) != 3:
+        raise InvalidParameterError(f"{what} needs three values (m), got {values!r}")
+    return tuple(check_length(what, v, positive) for v in values)

@@ -3,14 +3,17 @@
 from __future__ import annotations
 
 import dataclasses
+import difflib
 from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
 
+from carmkin.errors import InvalidParameterError
 from carmkin.transforms import translation
 
 from . import kinematics
+from .bounds import check_joint_limits
 from .params import (
     JOINT_NAMES,
     PRISMATIC,
@@ -36,8 +39,24 @@ class CArmSystem:
     body: BodyGeometry = field(default_factory=BodyGeometry)
     name: str = "custom"
 
+    def __post_init__(self) -> None:
+        for name, kind in (("carm", CArmGeometry), ("setup", TableSetup), ("table", TableGeometry),
+                           ("body", BodyGeometry), ("name", str)):
+            if not isinstance(getattr(self, name), kind):
+                raise InvalidParameterError(
+                    f"CArmSystem.{name} must be a {kind.__name__}, got {type(getattr(self, name)).__name__} "
+                    f"{getattr(self, name)!r:.80}")
+        for joint_range, prismatic in zip(self.joint_ranges, self.prismatic):
+            check_joint_limits(joint_range, prismatic, "CArmSystem")
+
     def replace(self, **changes) -> "CArmSystem":
         """A new system with some fields replaced, e.g. ``system.replace(carm=..., setup=...)``."""
+        names = [f.name for f in dataclasses.fields(self)]
+        for key in changes:
+            if key not in names:
+                hint = difflib.get_close_matches(key, names, n=1)
+                raise InvalidParameterError(f"CArmSystem.replace: unknown field {key!r}"
+                                            + (f"; did you mean {hint[0]!r}?" if hint else f"; fields: {', '.join(names)}"))
         return dataclasses.replace(self, **changes)
 
     # --- joints ---------------------------------------------------------------------------------------

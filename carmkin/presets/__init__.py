@@ -1,15 +1,23 @@
-"""Built-in presets: TOML files in ``carmkin/presets/`` with units in the key names (mm, deg)."""
+"""Presets: TOML files with units in the key names (mm, deg), checked strictly against :mod:`.schema`.
+
+Built-in presets live in ``carmkin/presets/``; :func:`load_preset` also reads a user's ``.toml`` file and
+:func:`parse_preset` a TOML text. Each value's trailing comment is its provenance (:func:`preset_provenance`):
+``# source: ...`` for a number taken from a cited source, ``# assumption: ...`` for one the source does not
+give. See docs/PRESETS.md.
+"""
 
 from __future__ import annotations
 
+import difflib
 import math
 import tomllib
+from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
 import numpy as np
 
-from carmkin.errors import InvalidParameterError, UnknownPresetError
+from carmkin.errors import InvalidParameterError, PresetError, UnknownPresetError
 from carmkin.model import kinematics
 from carmkin.model.params import (
     BodyGeometry,
@@ -21,9 +29,32 @@ from carmkin.model.params import (
 from carmkin.model.system import CArmSystem
 from carmkin.model.table_joints import CHAIN_ORDER, KINDS, standard_joints
 
+from .schema import check_file, check_merged
+from .writer import save_preset, to_toml
+
 _MM = 1e-3
 _CARM_JOINTS = {"vertical": _MM, "wigwag": math.pi / 180, "horizontal": _MM, "angular": math.pi / 180,
                 "orbital": math.pi / 180}
+#: Longest chain of ``base = "..."`` inheritance followed (a longer one is taken for a cycle).
+MAX_BASE_DEPTH = 8
+
+
+@dataclass(frozen=True)
+class Provenance:
+    """Where one preset value came from.
+
+    Attributes:
+        file: the path of the preset file that set the value (a base's keys name the base's file).
+        key: the dotted key, e.g. ``"carm.a1_mm"``.
+        kind: ``"source"`` (comment ``# source: ...``, a cited source), ``"assumption"`` (``# assumption:
+            ...``), ``"comment"`` (any other comment) or ``"none"`` (no comment).
+        note: the comment's text after the kind, e.g. ``'dissertation Table 4.4 "length offset: 1350 mm"'``.
+    """
+
+    file: str
+    key: str
+    kind: str
+    note: str
 
 
 def _preset_dir():
@@ -36,29 +67,130 @@ def list_presets() -> list[str]:
 
 
 def load_preset(name_or_path: str | Path) -> CArmSystem:
-    """Load a built-in preset by name, or a preset file by path (``*.toml``)."""
+    """Load a built-in preset by name, or a preset file by path (``*.toml``).
+
+    Raises :class:`~carmkin.errors.PresetError` (naming the file, the key and the nearest valid name) for
+    malformed TOML, an unknown section or key, a wrong type or a value out of bounds, and
+    :class:`~carmkin.errors.UnknownPresetError` for an unknown preset or ``base``.
+    """
+    data, origin, label = _read(name_or_path)
+    return _build(data, origin, label)
+
+
+def parse_preset(text: str, source: str = "<text>") -> CArmSystem:
+    """Build a system from the text of a preset file; ``source`` names it in error messages."""
+    return _build(*_resolve_base(*_parse(text, source), source), source)
+
+
+def system_from_dict(data: dict, default_name: str = "custom", source: str = "<dict>") -> CArmSystem:
+    """Build a :class:`CArmSystem` from a parsed preset (mm/deg keys, see ``siremobile-iso-c3d.toml``),
+    checked as strictly as a file; ``source`` names it in error messages."""
+    check_file(data, source)
+    return _build(*_resolve_base(data, _origin(data, source), source), source, default_name)
+
+
+def preset_provenance(name_or_path: str | Path) -> dict[str, Provenance]:
+    """Provenance of every value of a preset (its base's included), by dotted key (``"carm.a1_mm"``).
+
+    Read from each key's trailing comment in the file that set it (parsed with tomlkit, which keeps them).
+    """
+    _, origin, _ = _read(name_or_path)
+    comments = {file: _comments(Path(file).read_text()) for file in set(origin.values())}
+    provenance = {}
+    for key, file in origin.items():
+        comment = comments[file].get(key, "")
+        kind, _, note = comment.partition(":")
+        kind = kind.strip().lower()
+        if kind not in ("source", "assumption"):
+            kind, note = ("comment" if comment else "none"), comment
+        provenance[key] = Provenance(file, key, kind, note.strip())
+    return provenance
+
+
+def _build(data: dict, origin: dict[str, str], label: str, default_name: str | None = None) -> CArmSystem:
+    check_merged(data, origin, label)
+    try:
+        return _system(data, default_name or Path(label).stem)
+    except PresetError:
+        raise
+    except InvalidParameterError as exc:  # a cross-key check of the model (e.g. the setup axes)
+        raise PresetError(f"{label}: {exc}") from None
+
+
+def _read(name_or_path: str | Path) -> tuple[dict, dict[str, str], str]:
+    """The merged values of a preset, the file each dotted key came from, and the preset's file label."""
     path = Path(name_or_path)
-    if path.suffix == ".toml" and path.is_file():
-        text, name = path.read_text(), path.stem
+    if path.suffix == ".toml":
+        if not path.is_file():
+            raise UnknownPresetError(f"no preset file {str(path)!r}")
+        label = str(path)
     else:
-        name = str(name_or_path)
-        if name not in list_presets():
-            raise UnknownPresetError(f"unknown preset {name!r}; available: {', '.join(list_presets())}")
-        text = (_preset_dir() / f"{name}.toml").read_text()
-    return system_from_dict(_resolve_base(tomllib.loads(text)), default_name=name)
+        label = _builtin_file(str(name_or_path), "preset")
+    return (*_resolve_base(*_parse(Path(label).read_text(), label), label), label)
 
 
-def _resolve_base(data: dict, depth: int = 0) -> dict:
-    """Merge a preset over the preset named by its ``base`` key (sections merged key by key)."""
+def _builtin_file(name: str, what: str) -> str:
+    """The path of the built-in preset ``name`` (its file label in messages and provenance)."""
+    names = list_presets()
+    if name not in names:
+        hint = difflib.get_close_matches(name, names, n=1)
+        raise UnknownPresetError(f"unknown {what} {name!r}" + (f"; did you mean {hint[0]!r}?" if hint else "")
+                                 + f"; available: {', '.join(names)}")
+    return str(_preset_dir() / f"{name}.toml")
+
+
+def _parse(text: str, label: str) -> tuple[dict, dict[str, str]]:
+    """One file's values, checked by :func:`.schema.check_file`, and its dotted keys mapped to ``label``."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:  # the message says "(at line L, column C)"
+        raise PresetError(f"{label}: malformed TOML: {exc}") from None
+    check_file(data, label)
+    return data, _origin(data, label)
+
+
+def _origin(data: dict, label: str, prefix: str = "") -> dict[str, str]:
+    """Every dotted key of ``data`` (leaves only) mapped to ``label``."""
+    out = {}
+    for key, value in data.items():
+        out.update(_origin(value, label, f"{prefix}{key}.") if isinstance(value, dict) else {prefix + key: label})
+    return out
+
+
+def _comments(text: str) -> dict[str, str]:
+    """Each dotted key's trailing comment (without ``#``) in a preset's text."""
+    import tomlkit  # only here: comments and writing need it, loading does not
+
+    out = {}
+
+    def walk(table, prefix: str) -> None:
+        for key, item in table.items():
+            if isinstance(item, dict):
+                walk(item, f"{prefix}{key}.")
+            else:
+                out[prefix + key] = item.trivia.comment.lstrip("#").strip()
+
+    walk(tomlkit.parse(text), "")
+    return out
+
+
+def _resolve_base(data: dict, origin: dict[str, str], label: str, depth: int = 0) -> tuple[dict, dict[str, str]]:
+    """Merge a preset over the built-in preset named by its ``base`` key; also merge the keys' origins.
+
+    Sections merge key by key, except ``[setup]``, which a preset replaces whole (its two forms are
+    alternatives, :data:`.schema.SETUP_FORMS`); ``name`` and ``description`` are not inherited.
+    """
     if "base" not in data:
-        return data
-    if depth > 8:
-        raise InvalidParameterError("preset: 'base' chain too deep (a cycle?)")
-    base_name = data["base"]
-    if base_name not in list_presets():
-        raise UnknownPresetError(f"unknown base preset {base_name!r}; available: {', '.join(list_presets())}")
-    merged = _resolve_base(tomllib.loads((_preset_dir() / f"{base_name}.toml").read_text()), depth + 1)
-    return _merge(merged, {k: v for k, v in data.items() if k != "base"})
+        return data, origin
+    if depth >= MAX_BASE_DEPTH:
+        raise PresetError(f"{label}: 'base' chain longer than {MAX_BASE_DEPTH} (a cycle?)")
+    base_label = _builtin_file(data["base"], "base preset")
+    base, base_origin = _resolve_base(*_parse(Path(base_label).read_text(), base_label), base_label, depth + 1)
+    dropped = ("name", "description", "setup") if "setup" in data else ("name", "description")
+    base = {k: v for k, v in base.items() if k not in dropped}
+    base_origin = {k: v for k, v in base_origin.items() if k.partition(".")[0] in base}
+    merged = _merge(base, {k: v for k, v in data.items() if k != "base"})
+    return merged, {**base_origin, **{k: v for k, v in origin.items() if k != "base"}}
 
 
 def _merge(base: dict, override: dict) -> dict:
@@ -72,7 +204,7 @@ def _get(section: dict, key: str, where: str):
     try:
         return section[key]
     except KeyError:
-        raise InvalidParameterError(f"preset: missing key [{where}] {key}") from None
+        raise PresetError(f"missing key [{where}] {key}") from None
 
 
 def _range(section: dict, joint: str, scale: float, unit: str, where: str, name: str | None = None) -> JointRange:
@@ -145,16 +277,12 @@ def _table_joints(section: dict) -> tuple:
         unit, scale = ("mm", _MM) if prismatic else ("deg", math.pi / 180)
         if f"{name}_min_{unit}" in section or f"{name}_max_{unit}" in section:
             ranges[name] = _range(section, name, scale, unit, "table.joints")
-    known = {f"{n}_{b}_{'mm' if KINDS[n][0] else 'deg'}" for n in CHAIN_ORDER for b in ("min", "max")}
-    unknown = set(section) - known - {"up_in_table", "pivot_mm"}
-    if unknown:
-        raise InvalidParameterError(f"preset: unknown key(s) in [table.joints]: {sorted(unknown)}")
     return standard_joints(ranges, _get(section, "up_in_table", "table.joints"),
                            _mm3(_get(section, "pivot_mm", "table.joints"), "pivot_mm"))
 
 
-def system_from_dict(data: dict, default_name: str = "custom") -> CArmSystem:
-    """Build a :class:`CArmSystem` from a parsed preset (mm/deg keys, see ``siremobile-iso-c3d.toml``)."""
+def _system(data: dict, default_name: str) -> CArmSystem:
+    """The system of a checked, merged preset."""
     carm = _carm(_get(data, "carm", "top level"))
     setup = _setup(_get(data, "setup", "top level"), carm)
     t = data.get("table", {})
@@ -166,15 +294,6 @@ def system_from_dict(data: dict, default_name: str = "custom") -> CArmSystem:
         top_size=_mm3(t["top_size_mm"], "top_size_mm") if "top_size_mm" in t else table_defaults.top_size,
         top_center=_mm3(t["top_center_mm"], "top_center_mm") if "top_center_mm" in t else table_defaults.top_center,
     )
-    b = data.get("body", {})
-    body_kwargs = {}
-    for key, value in b.items():
-        if not key.endswith("_mm"):
-            raise InvalidParameterError(f"preset: [body] {key} must end in _mm")
-        field_name = key[: -len("_mm")]
-        body_kwargs[field_name] = _mm3(value, key) if isinstance(value, list) else value * _MM
-    try:
-        body = BodyGeometry(**body_kwargs)
-    except TypeError as exc:
-        raise InvalidParameterError(f"preset: unknown key in [body]: {exc}") from None
+    body = BodyGeometry(**{key[: -len("_mm")]: _mm3(value, key) if isinstance(value, list) else value * _MM
+                            for key, value in data.get("body", {}).items()})
     return CArmSystem(carm=carm, setup=setup, table=table, body=body, name=data.get("name", default_name))

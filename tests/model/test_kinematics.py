@@ -3,15 +3,17 @@
 from __future__ import annotations
 
 import io
+import math
 
 import numpy as np
 import pinocchio as pin
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from strategies import PRESET, configurations, poses, systems
 
 import carmkin
+from carmkin.model.bounds import NEAR_PARALLEL_SIN, PARALLEL_AXES_SIN
 from carmkin.robot.verify import (
     FRAMES,
     closed_form_frames,
@@ -81,6 +83,8 @@ def test_yourdfpy_agrees_with_closed_form(system, qs):
 
 @given(poses())
 def test_table_setup_from_pose_round_trips(T_base_table):
+    sin_gamma1 = math.hypot(T_base_table[0, 2], T_base_table[1, 2])
+    assume(not PARALLEL_AXES_SIN < sin_gamma1 < NEAR_PARALLEL_SIN)  # refused: tests/test_presets.py
     setup = carmkin.TableSetup.from_pose(T_base_table)
     system = PRESET.replace(setup=setup)
     # At d0 = d1 = 0 frame 2 of the chain is the C-arm base frame: 0T2 = (T_base_table)^-1.

@@ -1,0 +1,197 @@
+"""The preset format: every section and key a preset may hold, its type and its bounds in the preset's units.
+
+A preset speaks mm and degrees with the unit in the key name; this module checks a parsed file against
+:data:`SECTIONS` before anything is converted to SI, so that an error quotes the user's key, value and unit.
+The bounds are those of :mod:`carmkin.model.bounds`, converted to mm and degrees.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+from dataclasses import dataclass
+
+from carmkin.errors import InvalidParameterError, PresetError
+from carmkin.model.bounds import (
+    MAX_ANGLE,
+    MAX_LENGTH,
+    MAX_PIXELS,
+    MAX_SETUP_DISTANCE,
+    MIN_LENGTH,
+    check_real,
+)
+from carmkin.model.table_joints import CHAIN_ORDER, KINDS
+
+#: One millimetre in metres and one degree in radians: the preset's units.
+MM = 1e-3
+DEG = math.pi / 180
+
+
+@dataclass(frozen=True)
+class Rule:
+    """What one key holds: ``kind`` "number", "integer", "string" or "vector" (``size`` numbers), in ``unit``
+    ("mm", "deg", "px" or "" for a direction), each number within ``[low, high]`` in that unit."""
+
+    kind: str
+    unit: str = ""
+    low: float = -math.inf
+    high: float = math.inf
+    size: int = 0
+
+    def expected(self) -> str:
+        unit = f" ({self.unit})" if self.unit else ""
+        return {"number": f"a number{unit}", "integer": "an integer", "string": "a string",
+                "vector": f"a list of {self.size} numbers{unit}"}[self.kind]
+
+
+def _length(positive: bool = False, size: int = 0) -> Rule:
+    low = MIN_LENGTH / MM if positive else -MAX_LENGTH / MM
+    return Rule("vector" if size else "number", "mm", low, MAX_LENGTH / MM, size)
+
+
+_PRISMATIC_LIMIT = Rule("number", "mm", -MAX_LENGTH / MM, MAX_LENGTH / MM)
+_REVOLUTE_LIMIT = Rule("number", "deg", -MAX_ANGLE / DEG, MAX_ANGLE / DEG)
+_DIRECTION = Rule("vector", "", -1.0, 1.0, 3)
+_STRING = Rule("string")
+
+
+def _limits(joints: dict[str, bool]) -> dict[str, Rule]:
+    """``<joint>_min_mm|deg`` and ``<joint>_max_mm|deg`` for joints given as {name: prismatic}."""
+    return {f"{name}_{side}_{'mm' if prismatic else 'deg'}": _PRISMATIC_LIMIT if prismatic else _REVOLUTE_LIMIT
+            for name, prismatic in joints.items() for side in ("min", "max")}
+
+
+#: Every section (dotted for sub-tables; "" is the top level) and the rule of each of its keys.
+SECTIONS: dict[str, dict[str, Rule]] = {
+    "": {"name": _STRING, "description": _STRING, "base": _STRING},
+    "carm": {
+        "length_offset_mm": _length(positive=True),
+        "orbital_offset_mm": _length(positive=True),
+        "a1_mm": _length(),
+        "a2_mm": _length(),
+        **_limits({"vertical": True, "wigwag": False, "horizontal": True, "angular": False, "orbital": False}),
+        "source_to_detector_mm": _length(positive=True),
+        "detector_width_mm": _length(positive=True),
+        "detector_height_mm": _length(positive=True),
+        "detector_columns": Rule("integer", "px", 1, MAX_PIXELS),
+        "detector_rows": Rule("integer", "px", 1, MAX_PIXELS),
+        "principal_point_px": Rule("vector", "px", -MAX_PIXELS, MAX_PIXELS, 2),
+    },
+    "setup": {
+        "table_origin_in_xray_mm": _length(size=3),
+        "table_x_axis_in_xray": _DIRECTION,
+        "table_z_axis_in_xray": _DIRECTION,
+        **{f"gamma{i}_deg": Rule("number", "deg", -MAX_ANGLE / DEG, MAX_ANGLE / DEG) for i in (1, 2, 3)},
+        **{f"D{i}_mm": Rule("number", "mm", -MAX_SETUP_DISTANCE / MM, MAX_SETUP_DISTANCE / MM) for i in (1, 2, 3)},
+    },
+    "table": {
+        **_limits({"translation": True}),
+        "top_size_mm": _length(positive=True, size=3),
+        "top_center_mm": _length(size=3),
+    },
+    "table.joints": {
+        "up_in_table": _DIRECTION,
+        "pivot_mm": _length(size=3),
+        **_limits({name: KINDS[name][0] for name in CHAIN_ORDER}),
+    },
+    "body": {
+        "floor_height_mm": _length(),
+        "cart_size_mm": _length(positive=True, size=3),
+        "column_width_mm": _length(positive=True),
+        "c_thickness_mm": _length(positive=True),
+        "c_depth_mm": _length(positive=True),
+        "source_housing_mm": _length(positive=True, size=3),
+        "detector_thickness_mm": _length(positive=True),
+    },
+}
+
+#: The two alternative key sets of ``[setup]``: the table pose in the source frame, or the DH constants.
+SETUP_FORMS = (("table_origin_in_xray_mm", "table_x_axis_in_xray", "table_z_axis_in_xray"),
+               tuple(f"gamma{i}_deg" for i in (1, 2, 3)) + tuple(f"D{i}_mm" for i in (1, 2, 3)))
+
+
+def _nearest(name: str, candidates) -> str:
+    hint = difflib.get_close_matches(name, list(candidates), n=1)
+    return f"; did you mean {hint[0]!r}?" if hint else f"; valid: {', '.join(sorted(candidates))}"
+
+
+def check_file(data: dict, file: str) -> None:
+    """Refuse unknown sections and keys (naming the nearest valid one), wrong types and out-of-bound values.
+
+    ``data`` is one parsed file (before any ``base`` is merged in); ``file`` names it in the messages.
+    """
+    _check_section(data, "", file)
+
+
+def _check_section(data: dict, section: str, file: str) -> None:
+    rules = SECTIONS[section]
+    subsections = {s.rpartition(".")[2] for s in SECTIONS if s and s.rpartition(".")[0] == section}
+    where = f"[{section}]" if section else "the top level"
+    for key, value in data.items():
+        if key in subsections:
+            if not isinstance(value, dict):
+                raise PresetError(f"{file}: [{_join(section, key)}] must be a table (a [section]), got {value!r}")
+            _check_section(value, _join(section, key), file)
+        elif key in rules:
+            check_value(rules[key], value, f"{file}: [{section}] {key}" if section else f"{file}: {key}")
+        else:
+            kind = "section" if isinstance(value, dict) else "key"
+            raise PresetError(f"{file}: unknown {kind} {key!r} in {where}{_nearest(key, set(rules) | subsections)}")
+
+
+def check_value(rule: Rule, value, what: str) -> None:
+    """Refuse ``value`` unless it has the rule's type, shape and bounds (numbers in the rule's unit)."""
+    def wrong() -> PresetError:
+        got = f"the string {value!r}" if isinstance(value, str) else f"{type(value).__name__} {value!r}"
+        return PresetError(f"{what} must be {rule.expected()}, got {got}")
+
+    if rule.kind == "string":
+        if not isinstance(value, str):
+            raise wrong()
+        return
+    if rule.kind == "integer" and (isinstance(value, bool) or not isinstance(value, int)):
+        raise wrong()
+    numbers = value if rule.kind == "vector" else [value]
+    if not isinstance(numbers, list) or (rule.kind == "vector" and len(numbers) != rule.size):
+        raise wrong()
+    for number in numbers:
+        if isinstance(number, bool) or not isinstance(number, (int, float)):
+            raise wrong()
+        try:
+            check_real(what, number, rule.low, rule.high, rule.unit)
+        except InvalidParameterError as exc:
+            raise PresetError(str(exc)) from None
+
+
+def check_merged(data: dict, origin: dict[str, str], file: str) -> None:
+    """Cross-key checks on a preset with its base merged in: each joint's min ≤ max, one ``[setup]`` form.
+
+    ``origin`` maps dotted keys to the file each value came from (default: ``file``).
+    """
+    for section, rules in SECTIONS.items():
+        values = _section(data, section)
+        for key in rules:
+            if "_min_" not in key or key not in values:
+                continue
+            upper = key.replace("_min_", "_max_")
+            unit = key.rpartition("_")[2]
+            if upper in values and values[key] > values[upper]:
+                raise PresetError(f"{origin.get(_join(section, key), file)}: [{section}] {key} = {values[key]:g} {unit} "
+                                  f"> {upper} = {values[upper]:g} {unit}")
+    setup = data.get("setup", {})
+    used = [form for form in SETUP_FORMS if any(k in setup for k in form)]
+    if len(used) > 1:
+        where = next((origin[f"setup.{key}"] for key in setup if f"setup.{key}" in origin), file)
+        raise PresetError(f"{where}: [setup] mixes the table pose "
+                          f"({', '.join(SETUP_FORMS[0])}) with the DH constants ({', '.join(SETUP_FORMS[1])}); "
+                          "give one of the two")
+
+
+def _section(data: dict, section: str) -> dict:
+    for part in section.split(".") if section else ():
+        data = data.get(part, {})
+    return data
+
+
+def _join(section: str, key: str) -> str:
+    return f"{section}.{key}" if section else key

@@ -1,0 +1,83 @@
+"""Write a :class:`~carmkin.model.system.CArmSystem` as preset TOML (mm, deg), the inverse of loading it.
+
+``parse_preset(to_toml(system))`` gives back ``system`` up to the rounding of the unit conversions
+(a few ulp). The table setup is written as its DH constants (γ1..γ3, D1..D3); a motorized table's joints
+must be those of :func:`~carmkin.model.table_joints.standard_joints` (one ``up`` axis, one pivot).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import fields
+from pathlib import Path
+
+
+from carmkin.errors import PresetError
+from carmkin.model.params import PRISMATIC, BodyGeometry, JointRange
+from carmkin.model.system import CArmSystem
+from carmkin.model.table_joints import standard_joints
+
+from .schema import MM
+
+
+def to_toml(system: CArmSystem) -> str:
+    """The preset text of ``system``: ``[carm]``, ``[setup]`` (DH constants), ``[table]``, ``[body]``."""
+    import tomlkit  # only here: loading does not need it
+
+    if not isinstance(system, CArmSystem):
+        raise PresetError(f"to_toml: system must be a CArmSystem, got {type(system).__name__}")
+    carm = system.carm
+    carm_keys = {f"{name}_mm": getattr(carm, name) / MM for name in ("length_offset", "orbital_offset", "a1", "a2")}
+    for joint_range, prismatic in zip(carm.joint_ranges, PRISMATIC[1:]):
+        carm_keys.update(_limits(joint_range, prismatic))
+    carm_keys.update({f"{name}_mm": getattr(carm, name) / MM
+                      for name in ("source_to_detector", "detector_width", "detector_height")})
+    carm_keys.update(detector_columns=carm.detector_columns, detector_rows=carm.detector_rows)
+    if carm.principal_point is not None:
+        carm_keys["principal_point_px"] = list(carm.principal_point)
+    setup = system.setup
+    setup_keys = {**{f"gamma{i}_deg": math.degrees(getattr(setup, f"gamma{i}")) for i in (1, 2, 3)},
+                  **{f"D{i}_mm": getattr(setup, f"D{i}") / MM for i in (1, 2, 3)}}
+    table = system.table
+    table_keys = {**_limits(table.translation, True, "translation"),
+                  "top_size_mm": [v / MM for v in table.top_size],
+                  "top_center_mm": [v / MM for v in table.top_center]}
+    if table.joints:
+        table_keys["joints"] = _table_joints(table.joints)
+    body = {f"{f.name}_mm": [v / MM for v in value] if isinstance(value, tuple) else value / MM
+            for f in fields(BodyGeometry) for value in (getattr(system.body, f.name),)}
+    return tomlkit.dumps({"name": system.name, "carm": carm_keys, "setup": setup_keys, "table": table_keys,
+                          "body": body})
+
+
+def save_preset(system: CArmSystem, path: str | Path) -> Path:
+    """Write ``system`` as a preset file (``*.toml``) that :func:`~carmkin.presets.load_preset` reads back."""
+    path = Path(path)
+    if path.suffix != ".toml":
+        raise PresetError(f"save_preset: path must end in .toml, got {str(path)!r}")
+    path.write_text(to_toml(system))
+    return path
+
+
+def _limits(joint_range: JointRange, prismatic: bool, name: str | None = None) -> dict[str, float]:
+    name = name or joint_range.name
+    unit, convert = ("mm", _mm) if prismatic else ("deg", math.degrees)
+    return {f"{name}_min_{unit}": convert(joint_range.lower), f"{name}_max_{unit}": convert(joint_range.upper)}
+
+
+def _mm(metres: float) -> float:
+    return metres / MM
+
+
+def _table_joints(joints) -> dict:
+    """``[table.joints]`` of standard joints: ranges, ``up_in_table`` and ``pivot_mm``."""
+    by_name = {joint.name: joint for joint in joints}
+    up = next((by_name[name].axis for name in ("table_rotation", "table_height") if name in by_name), (0.0, -1.0, 0.0))
+    pivot = joints[0].point
+    if standard_joints({joint.name: joint.range for joint in joints}, up, pivot) != tuple(joints):
+        raise PresetError("to_toml: the table joints are not the standard ones (one up axis, one pivot) that "
+                          "a preset describes")
+    keys = {"up_in_table": list(up), "pivot_mm": [v / MM for v in pivot]}
+    for joint in joints:
+        keys.update(_limits(joint.range, joint.prismatic))
+    return keys
