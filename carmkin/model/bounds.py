@@ -9,11 +9,11 @@ comes within a factor of three of them.
 from __future__ import annotations
 
 import math
-import numbers
 
 import numpy as np
 
 from carmkin.errors import InvalidParameterError
+from carmkin.validation import real_scalar
 
 #: Largest length (m) of any C-arm or table dimension, offset, position or prismatic joint limit: 10 m.
 MAX_LENGTH = 10.0
@@ -38,19 +38,12 @@ PARALLEL_AXES_SIN = 1e-12
 def check_real(what: str, value, low: float = -math.inf, high: float = math.inf, unit: str = "") -> float:
     """``value`` as a float if it is a real, finite number in ``[low, high]``; else InvalidParameterError.
 
-    Refuses bool, str, complex and arrays (no silent cast, no ComplexWarning). ``what`` names the value in
-    the message, ``unit`` is appended to the numbers quoted.
+    Refuses bool, str, complex and arrays (no silent cast, no ComplexWarning): see
+    :func:`carmkin.validation.real_scalar`. ``what`` names the value in the message, ``unit`` is appended to
+    the numbers quoted.
     """
-    if isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iuf":
-        value = value[()]
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
-        raise InvalidParameterError(f"{what} must be a real number{f' ({unit})' if unit else ''}, got {value!r}")
-    value = float(value)
-    if not math.isfinite(value):
-        raise InvalidParameterError(f"{what} must be finite, got {value}")
-    if not low <= value <= high:  # the wording of carmkin.validation.real_scalar
-        raise InvalidParameterError(f"{what} must be within [{low:g}, {high:g}]{f' {unit}' if unit else ''}, got {value:g}")
-    return value
+    return real_scalar(value, what, error=InvalidParameterError, low=None if low == -math.inf else low,
+                       high=None if high == math.inf else high, limit=None, unit=unit)
 
 
 def check_length(what: str, value, positive: bool = False) -> float:
