@@ -51,7 +51,10 @@ def real_array(
     (``None``: no bound).
     """
     unit_text = f" ({unit})" if unit else ""
-    expected = f"real numbers{unit_text}" + (f" of shape {_shape_text(shape)}" if shape is not None else "")
+    if shape is not None and len(shape) == 0:
+        expected = f"a real number{unit_text}"
+    else:
+        expected = f"real numbers{unit_text}" + (f" of shape {_shape_text(shape)}" if shape is not None else "")
     if value is None or isinstance(value, (str, bytes)):
         raise error(f"{name} must be {expected}, got {_describe(value)}")
     try:
@@ -72,7 +75,7 @@ def real_array(
     ):
         raise error(f"{name} must be {expected}, got shape {array.shape}")
     if finite and not np.all(np.isfinite(array)):
-        raise error(f"{name} must be finite {expected}, got {_describe(value)}")
+        raise error(f"{name} must be finite, got {_describe(value)}")
     if limit is not None and array.size and np.max(np.abs(np.nan_to_num(array, posinf=0.0, neginf=0.0))) > limit:
         raise error(f"{name} must be {expected} within ±{limit:g}{unit_text}, got {_describe(value)}")
     return array
