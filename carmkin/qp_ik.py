@@ -17,6 +17,7 @@ frozen dataclasses; sentences are rendered from them).
 
 from __future__ import annotations
 
+import functools
 import importlib
 from typing import Callable, Sequence
 
@@ -46,6 +47,13 @@ __all__ = [
 #: Random seeds tried by :func:`solve` after the deterministic ones when the caller names no count: none
 #: where the 6-DOF closed form gives every solution, a few on redundant chains (the QP is a local method).
 DEFAULT_RANDOM_SEEDS = {True: 0, False: 4}
+
+
+@functools.lru_cache(maxsize=8)
+def _plain_scene(system) -> CollisionScene:
+    """The obstacle-free collision scene of ``system``, built once per (hashable, frozen) system: building
+    one costs more than a closed-form solve. Its data is overwritten by every distance query."""
+    return CollisionScene.from_system(system)
 
 
 def _default_accept(report) -> bool:
@@ -107,7 +115,7 @@ def solve(
     of closed-form branches and QP answers (default: joints in range and no pair inside the margin).
 
     Redundant chains: ``weights``/``prefer`` (:func:`joint_weights`), ``free`` (names of the joints that may
-    move; the others stay at ``q_current``), ``seeds`` (k, nq) tried after ``q_current``, ``random_seeds``
+    move; the others stay at ``q_current``), ``seeds`` (k, nq) tried after ``q_current`` (before the mid-range default), ``random_seeds``
     uniform draws (numpy seed ``rng_seed``; default :data:`DEFAULT_RANDOM_SEEDS`). When weights or a
     preference are given with ``q_current``, the single-axis closed form only seeds the QP, which starts
     from ``q_current`` (least weighted motion). ``closed_form=False``: QP only; ``qp=False``: closed form
@@ -119,7 +127,8 @@ def solve(
     task = make_task(model, target)
     if scene is not None and obstacles:
         raise QPIKError("give the obstacles either in the scene or as obstacles, not both")
-    scene = scene if scene is not None else CollisionScene.from_system(system, obstacles)
+    if scene is None:
+        scene = CollisionScene.from_system(system, obstacles) if obstacles else _plain_scene(system)
     accept = _default_accept if accept is None else accept
     lower, upper = np.array(model.lowerPositionLimit), np.array(model.upperPositionLimit)
     locked = locked_indices(system, free)
@@ -167,9 +176,14 @@ def solve(
         return SolveResult(np.full(model.nq, np.nan), False, Path.NONE, None, Failure.QP_NOT_RUN, None, closed,
                            tuple(branch_reports), (), error)
 
-    start = ("q_current" if q_current is not None else "mid-range", np.clip(q_ref, lower, upper))
-    ordered = [start] + branch_seeds if (weights_given and q_current is not None) else branch_seeds + [start]
-    ordered += [(f"seed {k}", np.asarray(s, dtype=float)) for k, s in enumerate(seeds)]
+    start = [("q_current" if q_current is not None else "mid-range", np.clip(q_ref, lower, upper))]
+    given = [(f"seed {k}", np.asarray(s, dtype=float)) for k, s in enumerate(seeds)]
+    if q_current is None:  # the caller's seeds know more than the middle of the ranges
+        ordered = branch_seeds + given + start
+    elif weights_given:  # least weighted motion from where the joints are
+        ordered = start + branch_seeds + given
+    else:
+        ordered = branch_seeds + start + given
     count = DEFAULT_RANDOM_SEEDS[system.nq == 6] if random_seeds is None else int(random_seeds)
     ordered += [(f"random {k}", s) for k, s in enumerate(draw_seeds(lower, upper, count, rng_seed))]
 

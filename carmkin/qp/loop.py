@@ -112,6 +112,7 @@ class QPIK:
         status, details = RunStatus.CONVERGED, {}
         iteration = 0
         state = self.state(q)
+        energies = []  # task energy E at each iterate, for the progress test
         while True:
             min_distance = min(min_distance, state.min_distance)  # the seed, then every accepted iterate
             position_error, angle_error, done = self.errors(state)
@@ -121,6 +122,14 @@ class QPIK:
                 status = RunStatus.MAX_ITERATIONS
                 break
             step = build_step(state, self.tasks, self.limits, self.avoidance, self.weights, o)
+            energies.append(step.energy)
+            window = int(o.progress_window)
+            if len(energies) > window and step.energy > o.progress_ratio * energies[-1 - window]:
+                status = RunStatus.STALLED
+                limits = self.limits.at_limits(state.q, AT_LIMIT_TOLERANCE)
+                details = {"pairs": self._pairs(state, STALL_SLACK), "no_progress": True,
+                           "joints_at_limits": tuple(dict.fromkeys(self._joint_of_q[int(j)] for j in limits))}
+                break
             if not step.bounds_consistent:
                 status = RunStatus.OUTSIDE_LIMITS
                 break

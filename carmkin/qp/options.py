@@ -42,6 +42,8 @@ class QPIKOptions:
     influence_distance: float = 0.1
     collision_gain: float = 0.5
     stall_step: float = 1e-12
+    progress_window: int = 10
+    progress_ratio: float = 0.9
 
     def __post_init__(self) -> None:
         positive = ("position_tolerance", "angle_tolerance", "max_step", "influence_distance", "collision_gain",
@@ -56,5 +58,8 @@ class QPIKOptions:
             raise QPIKError(f"QPIKOptions.collision_gain must be in (0, 1], got {self.collision_gain}")
         if self.influence_distance <= self.safety_margin:
             raise QPIKError("QPIKOptions.influence_distance must exceed safety_margin")
+        if int(self.progress_window) < 1 or not (0 < self.progress_ratio <= 1):
+            raise QPIKError(f"QPIKOptions.progress_window must be >= 1 and progress_ratio in (0, 1], got "
+                            f"{self.progress_window}, {self.progress_ratio}")
         if int(self.max_iterations) < 1:
             raise QPIKError(f"QPIKOptions.max_iterations must be >= 1, got {self.max_iterations}")

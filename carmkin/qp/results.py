@@ -45,6 +45,7 @@ class QPIKResult:
     joints_at_limits: tuple[str, ...] = ()
     pairs: tuple[str, ...] = ()
     rejection: object = None
+    no_progress: bool = False
 
     @property
     def success(self) -> bool:
@@ -72,7 +73,8 @@ class QPIKResult:
                 why.append("collision pairs at or inside the safety margin: " + pairs)
             if s is RunStatus.INSIDE_MARGIN:
                 return f"{s.value} ({'; '.join(why or ['pairs inside the margin'])})"
-            return f"stalled with {errors}" + (f" ({'; '.join(why)})" if why else " (local minimum)")
+            stalled = f"no progress in {self.iterations} iterations" if self.no_progress else "stalled"
+            return f"{stalled} with {errors}" + (f" ({'; '.join(why)})" if why else " (local minimum)")
         if s is RunStatus.REJECTED:
             return "converged to an invalid configuration: " + "; ".join(self.rejection.reasons)
         return s.value

@@ -7,8 +7,8 @@ For the step ``dq`` (nv,) at a kinematic state:
                 G dq <= h      (task inequalities, :class:`~carmkin.qp.limits.CollisionAvoidance` rows)
 
 with ``lambda = damping + error_damping * E`` and ``E = sum_i w_i |r_i|^2`` (Levenberg–Marquardt: small near
-the solution, so convergence is quadratic). Written as ``½ dq^T H dq + g^T dq`` with ``H = 2 (...)``
-divided by 2, i.e. ``H = sum w J^T J + lambda W`` and ``g = sum w J^T r``.
+the solution, so convergence is quadratic). Handed to the backend as ``½ dq^T H dq + g^T dq`` (half the
+objective, less its constant): ``H = sum_i w_i J_i^T J_i + lambda diag(joint_weights)``, ``g = sum_i w_i J_i^T r_i``.
 """
 
 from __future__ import annotations
@@ -65,7 +65,7 @@ def build_step(state: KinematicState, tasks: Sequence, limits: JointLimits,
         if rows is not None:
             G_rows.append(rows[0])
             h_rows.append(rows[1])
-    H += (options.damping + options.error_damping * energy) * np.diag(joint_weights)
+    H[np.diag_indices(nv)] += (options.damping + options.error_damping * energy) * joint_weights
     if avoidance is not None:
         rows = avoidance.inequalities(state)
         if rows is not None:
