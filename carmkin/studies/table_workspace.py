@@ -84,15 +84,23 @@ def axis_target(T: np.ndarray) -> AxisTarget:
 
 
 def _five_dof_seeds(system: CArmSystem, T: np.ndarray) -> list[np.ndarray]:
-    """Every 5-DOF closed-form branch for the pose T with all table joints at zero, as full q (nq,)."""
+    """Every 5-DOF closed-form branch for the pose T with all table joints at zero, as full q (nq,), each
+    revolute joint moved by a whole turn into its range where that is possible (same pose)."""
     base = system.dh_frames(np.zeros(system.nq))[1]
     sols = five_dof.solve_pose(system.carm, inverse(base) @ T)
     out = []
+    turns = 2 * np.pi * np.array([0.0, -1.0, 1.0])  # the closed form wraps angles to (-π, π]
     for q5, ok in zip(sols.q[0], sols.valid[0]):
         if ok:
             q = np.zeros(system.nq)
             q[-5:] = q5
-            out.append(q)
+            for i in range(system.nq - 5, system.nq):  # a revolute joint's whole-turn twin inside its range
+                if not system.prismatic[i]:
+                    candidates = q[i] + turns
+                    q[i] = candidates[np.argmin(np.abs(system.joint_ranges[i].excess(candidates)))]
+            # a branch on a limit comes out of the closed form up to round-off beyond it: back onto the limit
+            near = np.abs(np.clip(q, system.lower, system.upper) - q) <= five_dof.TOLERANCE
+            out.append(np.where(near, np.clip(q, system.lower, system.upper), q))
     return out
 
 
