@@ -161,27 +161,6 @@ def test_every_installed_backend_converges_inside_the_bounds(backend):
         solved += 1
 
 
-@pytest.mark.skipif("osqp" not in qpsolvers.available_solvers, reason="osqp not installed")
-def test_osqp_workspace_matches_daqp_on_random_qps():
-    """The persistent OSQP workspace (fixed sparsity, updated in place) solves a sequence of different QPs,
-    with varying numbers of inequality rows, to the same minimiser as daqp, inside the bounds."""
-    rng = np.random.default_rng(11)
-    osqp_backend = qp_ik.make_backend("osqp", 6, 5)
-    daqp_backend = qp_ik.make_backend("daqp", 6, 5)
-    for m in [0, 3, 5, 1, 4]:
-        A = rng.normal(size=(8, 6))
-        H = A.T @ A + 1e-3 * np.eye(6)
-        g = rng.normal(size=6)
-        G, h = rng.normal(size=(m, 6)), rng.uniform(0.0, 0.5, m)
-        lb, ub = -rng.uniform(0.05, 0.3, 6), rng.uniform(0.05, 0.3, 6)
-        x_osqp = osqp_backend.solve(H, g, G, h, lb, ub)
-        x_daqp = daqp_backend.solve(H, g, G, h, lb, ub)
-        assert np.allclose(x_osqp, x_daqp, atol=1e-6)
-        assert np.all(x_osqp >= lb) and np.all(x_osqp <= ub)
-        if m:
-            assert np.all(G @ x_osqp <= h + 1e-7)
-
-
 @settings(max_examples=15)
 @given(unit6, noise6)
 def test_axis_target_leaves_the_roll_free(u, noise):
@@ -344,24 +323,6 @@ def test_hybrid_reports_failure_without_a_colliding_answer(monkeypatch):
     assert "branch 0" in result.reason and "patient" in result.reason and "QP from" in result.reason
     if np.all(np.isfinite(result.q)):
         assert validity.check(PRESET, result.q, obstacles=[patient]).reachable
-
-
-@settings(max_examples=20)
-@given(unit6, st.floats(0.3, 0.9))
-def test_closed_form_pose_of_axis_and_aim_targets(u, distance):
-    """The full pose handed to the closed form meets the 5-DOF/aim target and keeps q_current's roll."""
-    q = PRESET.lower + u * (PRESET.upper - PRESET.lower)
-    T_ref = PRESET.fk(q)
-    T = PRESET.fk(np.clip(q + 0.1, PRESET.lower, PRESET.upper))
-    axis = qp_ik.closed_form_pose(AxisTarget(T[:3, 3], T[:3, 2]), T_ref)
-    assert np.allclose(axis[:3, 3], T[:3, 3]) and np.allclose(axis[:3, 2], T[:3, 2])
-    # the least rotation taking the reference beam onto the target beam: its axis is normal to both
-    delta = pin.log3(T_ref[:3, :3].T @ axis[:3, :3])
-    assert abs((T_ref[:3, :3] @ delta) @ T_ref[:3, 2]) < 1e-9
-    point = T[:3, 3] + distance * T[:3, 2]
-    aim = qp_ik.closed_form_pose(AimTarget(point, (0.3, 0.9)), T_ref)
-    w = point - aim[:3, 3]
-    assert np.linalg.norm(w - (w @ aim[:3, 2]) * aim[:3, 2]) < 1e-9 and 0.3 - 1e-9 <= w @ aim[:3, 2] <= 0.9 + 1e-9
 
 
 @pytest.fixture
