@@ -126,7 +126,9 @@ class DAQPBackend:
             upper[n:] = h
             lower[n:] = -self.INFINITY
         x, _, exitflag, _ = self._solve(H, g, G if m else self._no_rows, upper, lower, self._sense[: n + m])
-        return np.asarray(x) if exitflag > 0 else None
+        if exitflag <= 0:
+            return None
+        return np.clip(x, lb, ub)  # DAQP meets bounds to its primal tolerance (~1e-7) only
 
 
 def make_backend(name: str | None, nv: int, max_rows: int):
