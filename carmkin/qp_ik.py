@@ -17,6 +17,7 @@ frozen dataclasses; sentences are rendered from them).
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import importlib
 from typing import Callable, Sequence
@@ -201,7 +202,7 @@ def solve(
             if accept(report):
                 return SolveResult(run.q, True, Path.QP, name, None, report, closed, tuple(branch_reports),
                                    tuple(attempts) + (run,), error)
-            run = QPIKResult(**{**vars(run), "status": RunStatus.REJECTED, "rejection": report})
+            run = dataclasses.replace(run, status=RunStatus.REJECTED, rejection=report)
         attempts.append(run)
     # Never hand back a colliding or out-of-range answer: the closest attempt that is reachable, else NaN.
     safe = [(run, report) for run in attempts for report in [check(run.q)[0]] if report.reachable]

@@ -76,7 +76,8 @@ class QPIKResult:
             stalled = f"no progress in {self.iterations} iterations" if self.no_progress else "stalled"
             return f"{stalled} with {errors}" + (f" ({'; '.join(why)})" if why else " (local minimum)")
         if s is RunStatus.REJECTED:
-            return "converged to an invalid configuration: " + "; ".join(self.rejection.reasons)
+            why = "; ".join(self.rejection.reasons)
+            return ("converged to an invalid configuration: " + why) if why else "converged, rejected by the acceptance rule"
         return s.value
 
 

@@ -376,3 +376,25 @@ def test_ur5_reaches_random_reachable_targets():
         pin.framesForwardKinematics(model, data, run.q)
         assert np.linalg.norm(data.oMf[frame].translation - T[:3, 3]) <= 1.01 * TOL
         assert np.linalg.norm(pin.log3(T[:3, :3].T @ data.oMf[frame].rotation)) <= 1.01 * TOL
+
+
+# --- the decision path of the one solve -------------------------------------------------------------------
+def test_acceptance_rule_decides_and_failures_are_structured():
+    T = PRESET.fk(Q_A)
+    refused = qp_ik.solve(PRESET, T, q_current=Q_A, accept=lambda report: False)
+    assert not refused.success and refused.failure is qp_ik.Failure.NOT_REACHED
+    assert all(not b.accepted for b in refused.branch_reports)
+    converged = [a for a in refused.attempts if a.status is qp_ik.RunStatus.REJECTED]
+    assert converged and all(not a.success and a.rejection is not None for a in converged)
+    assert "rejected by the acceptance rule" in refused.reason
+    assert refused.reasons == tuple(refused.reason.split(" | "))
+    closed_only = qp_ik.solve(PRESET, T, q_current=Q_A, accept=lambda report: False, qp=False)
+    assert closed_only.failure is qp_ik.Failure.QP_NOT_RUN and closed_only.attempts == ()
+    assert closed_only.path == qp_ik.Path.NONE and np.all(np.isnan(closed_only.q))
+    taken = qp_ik.solve(PRESET, T, q_current=Q_A)
+    assert taken.success and taken.failure is None and taken.reason is None and taken.reasons == ()
+
+
+def test_scene_or_obstacles_not_both():
+    with pytest.raises(QPIKError, match="either"):
+        qp_ik.solve(PRESET, PRESET.fk(Q_A), obstacles=[blocking_box()], scene=SCENE)
