@@ -23,9 +23,10 @@ def qps(draw, nv=6, max_rows=5):
     m = draw(st.integers(0, max_rows))
     floats = st.floats(-1.0, 1.0)
     A = np.array(draw(st.lists(floats, min_size=8 * nv, max_size=8 * nv))).reshape(8, nv)
-    H = A.T @ A + 1e-3 * np.eye(nv)
+    H = A.T @ A + 0.1 * np.eye(nv)  # conditioned as the IK's damped steps are near convergence
     g = np.array(draw(st.lists(floats, min_size=nv, max_size=nv)))
     G = np.array(draw(st.lists(floats, min_size=m * nv, max_size=m * nv))).reshape(m, nv)
+    G = G + np.eye(m, nv)  # no empty rows (0 <= h): every row constrains
     h = np.array(draw(st.lists(st.floats(0.0, 0.5), min_size=m, max_size=m)))
     lb = -np.array(draw(st.lists(st.floats(0.05, 0.3), min_size=nv, max_size=nv)))
     ub = np.array(draw(st.lists(st.floats(0.05, 0.3), min_size=nv, max_size=nv)))

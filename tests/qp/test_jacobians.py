@@ -21,9 +21,11 @@ SYSTEMS = {"plain": PRESET, "motorized": MOTORIZED}
 #: ~ EPS² · |third derivative| and round-off ~ 1e-16 / EPS, both far below it.
 EPS = 1e-6
 JACOBIAN_TOLERANCE = 1e-6
-#: Distances come from coal's GJK/EPA, accurate to ~1e-11 m: a larger step keeps that noise out of the
-#: differences (1e-11 / 1e-4); a pair counts as smooth at q when central differences with two steps agree.
-DISTANCE_EPS, DISTANCE_SMOOTHNESS, DISTANCE_TOLERANCE = 1e-4, 1e-6, 1e-5
+#: Distances come from coal's GJK, converged to a tolerance, not to round-off: a larger step keeps that noise
+#: small in the differences, a pair counts as smooth at q when central differences with two steps agree, and
+#: the tolerance (1e-4, against O(0.1–1) for a wrong sign, support mask or witness point) covers what noise
+#: is left.
+DISTANCE_EPS, DISTANCE_SMOOTHNESS, DISTANCE_TOLERANCE = 1e-4, 1e-6, 1e-4
 
 
 def unit(n):
