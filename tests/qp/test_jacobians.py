@@ -26,6 +26,8 @@ JACOBIAN_TOLERANCE = 1e-6
 #: the tolerance (1e-4, against O(0.1–1) for a wrong sign, support mask or witness point) covers what noise
 #: is left.
 DISTANCE_EPS, DISTANCE_SMOOTHNESS, DISTANCE_TOLERANCE = 1e-4, 1e-6, 1e-4
+#: One-sided slopes differing by more than this (EPS · |d''| of a smooth pair is far below) mark a kink.
+DISTANCE_KINK = 1e-3
 
 
 def unit(n):
@@ -112,17 +114,23 @@ def test_distance_jacobian_matches_central_differences(name, data):
     J = scene.distance_jacobian(near, state.J)
     probe = model.createData()
 
-    def central(step):
-        columns = []
+    def differences(step):
+        """(forward, backward) differences (n_pairs, nv) with ``step``."""
+        forward, backward = [], []
         for i in range(model.nv):
             e = np.zeros(model.nv)
             e[i] = step
-            columns.append((scene.distances(probe, q=q + e) - scene.distances(probe, q=q - e)) / (2 * step))
-        return np.array(columns).T
+            forward.append((scene.distances(probe, q=q + e) - d) / step)
+            backward.append((d - scene.distances(probe, q=q - e)) / step)
+        return np.array(forward).T, np.array(backward).T
 
-    coarse, fine = central(DISTANCE_EPS), central(DISTANCE_EPS / 2)
-    # smooth where both steps agree (a witness feature switching inside the stencil shows as disagreement)
-    smooth = (d > 1e-3)[:, None] & (np.abs(coarse - fine) < DISTANCE_SMOOTHNESS)
+    forward, backward = differences(DISTANCE_EPS)
+    coarse = 0.5 * (forward + backward)
+    fine = 0.5 * np.add(*differences(DISTANCE_EPS / 2))
+    # Smooth where the slopes on both sides agree (parallel faces give a kink: left and right slopes differ,
+    # while central differences of |x| agree with each other) and central differences with two steps agree.
+    smooth = ((d > 1e-3)[:, None] & (np.abs(forward - backward) < DISTANCE_KINK)
+              & (np.abs(coarse - fine) < DISTANCE_SMOOTHNESS))
     assume(smooth.sum() > 0)
     central = fine
     assert np.abs(J - central)[smooth].max() <= DISTANCE_TOLERANCE
