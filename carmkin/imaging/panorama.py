@@ -55,8 +55,8 @@ class Shot:
     ``principal_point`` (2,) px in the panorama; ``axis`` (3,) unit V_p in the reference source frame;
     ``R`` (3, 3) orientation of the shot in the reference source frame; ``H`` (3, 3) shot image → panorama;
     ``target`` (4, 4) source pose in the table frame; ``q`` (nq,) planned joints (the chosen closed-form
-    branch when invalid; NaN when there is no solution); ``path``: ``"closed_form"``, ``"qp"`` or
-    ``"none"``; ``valid``; ``reasons``: why not valid (empty when valid); ``category``: one of
+    branch when invalid; NaN when there is no solution); ``path``: ``"closed_form"``, ``"single_axis"``
+    (motorized table), ``"qp"`` or ``"none"``; ``valid``; ``reasons``: why not valid (empty when valid); ``category``: one of
     :data:`CATEGORIES`; ``moves`` (nq,): ``q − q_current`` (m, rad); ``outline`` (M, 2): border of the
     predicted image in the panorama (px); ``residual``: max(position m, angle rad) of FK(q) vs target.
     """
@@ -145,49 +145,24 @@ class PanoramaPlanner:
         M[:3, :3] = R
         return self.P_ref @ M
 
-    def _check(self, q):
-        from carmkin.robot import validity
-
-        return validity.check(self.system, q, margin=self.margin, scene=self.scene)
-
     def _solve(self, T, q_current, fallback: bool):
-        """(q, path, report, ik, reasons): the first valid closed-form branch, else the QP, else the best try."""
-        from carmkin import analytic_ik
+        """(q, path, report, ik, reasons) from the one solve of :func:`carmkin.qp_ik.solve` with this
+        planner's rule (valid: joints, collisions at ``margin``, table in the cone) and scene: the first valid
+        closed-form branch, else the QP, else the chosen branch that reaches the pose (invalid), else NaN."""
+        from carmkin import qp_ik
+        from carmkin.robot.validity import pose_in_cone
 
-        reasons: list[str] = []
-        ik = None
-        first = None  # (q, report) of the chosen branch, returned when nothing is valid
-        try:
-            ik = analytic_ik.solve(self.system, T, q_current=q_current)
-        except CarmkinError as exc:
-            reasons.append(f"closed form: {exc}")
-        if ik is not None:
-            order = [ik.chosen] + [k for k in range(len(ik.solutions)) if k != ik.chosen]
-            for k in order:
-                q_k = np.asarray(ik.solutions[k], dtype=float)
-                if not ik.branches[k].reached or not np.all(np.isfinite(q_k)):
-                    reasons.append(f"branch {k}: pose not reached")
-                    continue
-                report = self._check(q_k)
-                if report.valid:
-                    return q_k, "closed_form", report, ik, ()
-                first = first or (q_k, report)
-                reasons.append(f"branch {k}: " + "; ".join(report.reasons))
-        if fallback and (first is None or first[1].table_in_cone):
-            from carmkin import qp_ik
-
-            result = qp_ik.solve(self.system, T, q_current=q_current, obstacles=self.obstacles)
-            if result.success and np.all(np.isfinite(result.q)):
-                report = self._check(result.q)
-                if report.valid:
-                    return result.q, "qp", report, ik, ()
-                reasons.append("QP: " + "; ".join(report.reasons))
-            else:
-                runs = [r for r in (result.reason or "").split(" | ") if r.startswith("QP")]
-                reasons.append("QP IK: " + (" | ".join(runs) or str(result.reason)))
-        if first is None:
-            return np.full(self.system.nq, np.nan), "none", None, ik, tuple(reasons)
-        return first[0], "closed_form", first[1], ik, tuple(reasons)
+        # The QP cannot change whether the beam meets the table (that depends on the pose alone): skip it
+        # when the pose misses the table.
+        result = qp_ik.solve(self.system, T, q_current=q_current, scene=self.scene,
+                             options=qp_ik.QPIKOptions(safety_margin=self.margin),
+                             accept=lambda report: report.valid, qp=fallback and pose_in_cone(self.system, T))
+        if result.success:
+            return result.q, result.path.value, result.validity, result.closed_form, ()
+        reached = [b for b in result.branch_reports if b.reached]
+        if not reached:
+            return np.full(self.system.nq, np.nan), "none", None, result.closed_form, result.reasons
+        return reached[0].q, "closed_form", reached[0].validity, result.closed_form, result.reasons
 
     def shot(self, principal_point, q_current=None, fallback: bool | None = None) -> Shot:
         """Plan the shot whose principal point is ``principal_point`` (u, v) px in the panorama.

@@ -8,15 +8,17 @@ the axis free (as in §4.6.1: :class:`carmkin.qp_ik.AxisTarget`).
 
 Reachable by model X (:data:`MODELS`): with only model X's joints free and every other joint held at zero,
 some configuration within all ranges, every pair at least the margin apart, puts the source on the pose
-(1e-6 m, 1e-6 rad). Solver: :func:`carmkin.qp_ik.solve_redundant`, seeded at mid-range (held joints 0),
-then, for the C-arm alone, at every branch of the 5-DOF closed form (:mod:`carmkin.analytic.five_dof`, exact: all
-solutions), then at ``random_seeds`` uniform draws. For models with table DOFs the QP is a local method, so
+(1e-6 m, 1e-6 rad). The C-arm alone: every branch of the 5-DOF closed form (:mod:`carmkin.analytic.five_dof`,
+exact: all solutions) is checked, no QP needed. Models with table DOFs: :func:`carmkin.qp_ik.solve` with
+only the model's joints free (the single-axis closed form where d0 is free, then the QP from its branches,
+from mid-range with held joints 0 and from ``random_seeds`` uniform draws). For models with table DOFs the QP is a local method, so
 the fractions are lower bounds (a miss may be a local-minimum failure); the generating configuration is
 never used as a seed.
 """
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -25,8 +27,10 @@ import numpy as np
 from carmkin.analytic import five_dof
 from carmkin.errors import CarmkinError
 from carmkin.model.system import CArmSystem
-from carmkin.qp_ik import AxisTarget, QPIKOptions, solve_redundant
+from carmkin.qp_ik import AxisTarget, QPIKOptions, make_task, solve
+from carmkin.robot import validity
 from carmkin.robot.collision import CollisionScene
+from carmkin.robot.state import KinematicState
 from carmkin.transforms import inverse
 
 CARM = ("vertical", "wigwag", "horizontal", "angular", "orbital")
@@ -80,15 +84,23 @@ def axis_target(T: np.ndarray) -> AxisTarget:
 
 
 def _five_dof_seeds(system: CArmSystem, T: np.ndarray) -> list[np.ndarray]:
-    """Every 5-DOF closed-form branch for the pose T with all table joints at zero, as full q (nq,)."""
+    """Every 5-DOF closed-form branch for the pose T with all table joints at zero, as full q (nq,), each
+    revolute joint moved by a whole turn into its range where that is possible (same pose)."""
     base = system.dh_frames(np.zeros(system.nq))[1]
     sols = five_dof.solve_pose(system.carm, inverse(base) @ T)
     out = []
+    turns = 2 * np.pi * np.array([0.0, -1.0, 1.0])  # the closed form wraps angles to (-π, π]
     for q5, ok in zip(sols.q[0], sols.valid[0]):
         if ok:
             q = np.zeros(system.nq)
             q[-5:] = q5
-            out.append(q)
+            for i in range(system.nq - 5, system.nq):  # a revolute joint's whole-turn twin inside its range
+                if not system.prismatic[i]:
+                    candidates = q[i] + turns
+                    q[i] = candidates[np.argmin(np.abs(system.joint_ranges[i].excess(candidates)))]
+            # a branch on a limit comes out of the closed form up to round-off beyond it: back onto the limit
+            near = np.abs(np.clip(q, system.lower, system.upper) - q) <= five_dof.TOLERANCE
+            out.append(np.where(near, np.clip(q, system.lower, system.upper), q))
     return out
 
 
@@ -99,10 +111,26 @@ def reachable(system: CArmSystem, T: np.ndarray, model: str, *, options: QPIKOpt
     missing = set(free) - set(system.joint_names)
     if missing:
         raise TableWorkspaceError(f"model {model!r} needs joints {sorted(missing)} the system lacks")
-    extra = _five_dof_seeds(system, T) if model == "none" else []
-    result = solve_redundant(system, axis_target(T), options=options, free=free, extra_seeds=extra,
-                             random_seeds=random_seeds, rng_seed=rng_seed)
+    target = axis_target(T)
+    if model == "none":  # the 5-DOF closed form gives every solution: reachable iff one branch is valid
+        return any(_branch_reaches(system, target, q, options) for q in _five_dof_seeds(system, T))
+    result = solve(system, target, options=options, free=free, random_seeds=random_seeds, rng_seed=rng_seed)
     return result.success
+
+
+def _branch_reaches(system: CArmSystem, target: AxisTarget, q: np.ndarray, options: QPIKOptions) -> bool:
+    """A closed-form configuration on the target within tolerance, joints in range, pairs clear of the margin
+    (one forward-kinematics pass for the pose and the collisions)."""
+    model = system.pinocchio()[0]
+    state = KinematicState(model, q, _scene(system))
+    if not make_task(model, target).errors(state.data, options.position_tolerance, options.angle_tolerance).satisfied:
+        return False
+    return validity.check(system, q, margin=options.safety_margin, scene=state.scene, state=state).reachable
+
+
+@functools.lru_cache(maxsize=4)
+def _scene(system: CArmSystem) -> CollisionScene:
+    return CollisionScene.from_system(system)
 
 
 def run_study(system: CArmSystem, models=tuple(MODELS), n: int = 200, seed: int = 0, *,

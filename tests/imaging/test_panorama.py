@@ -13,7 +13,7 @@ import carmkin
 from carmkin import imaging
 from carmkin.cli import main
 from carmkin.imaging import phantom
-from carmkin.imaging.panorama import CATEGORIES, PanoramaError, PanoramaPlanner
+from carmkin.imaging.panorama import CATEGORIES, PanoramaError, PanoramaPlanner, pose_residual
 
 SYSTEM = carmkin.load_preset("siremobile-iso-c3d")
 PLANNER = PanoramaPlanner(SYSTEM, fallback=False)
@@ -189,14 +189,21 @@ def test_validity_map_agrees_with_shots():
     assert CATEGORIES[PLANNER.validity_map([CENTRE[0]], [CENTRE[1]])[0, 0]] == "valid"
 
 
-def test_qp_fallback_for_a_motorized_table():
-    """Extra table joints: the closed form is unsupported, the QP IK plans the shot."""
+def test_motorized_table_through_the_one_solve():
+    """Extra table joints: the 6-DOF closed form does not apply; the single-axis closed form of the one
+    solve plans the shot, and with the closed form off the QP IK does."""
     system = carmkin.load_preset("siremobile-iso-c3d-motorized-table")
     planner = PanoramaPlanner(system)
     shot = planner.shot(CENTRE + [150.0, 0.0])
-    assert shot.path == "qp" and shot.valid
+    assert shot.path == "single_axis" and shot.valid
     assert shot.residual < 1e-5
     assert shot.q.shape == (system.nq,)
+    from carmkin import qp_ik
+
+    qp = qp_ik.solve(system, shot.target, q_current=planner.q_reference, scene=planner.scene, closed_form=False,
+                     accept=lambda report: report.valid)
+    assert qp.path == "qp" and qp.success and qp.validity.valid
+    assert pose_residual(system.fk(qp.q), shot.target) < 1e-5
 
 
 def test_cli_shot_plan_map_parallax(tmp_path, capsys):

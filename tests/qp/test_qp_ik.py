@@ -161,27 +161,6 @@ def test_every_installed_backend_converges_inside_the_bounds(backend):
         solved += 1
 
 
-@pytest.mark.skipif("osqp" not in qpsolvers.available_solvers, reason="osqp not installed")
-def test_osqp_workspace_matches_daqp_on_random_qps():
-    """The persistent OSQP workspace (fixed sparsity, updated in place) solves a sequence of different QPs,
-    with varying numbers of inequality rows, to the same minimiser as daqp, inside the bounds."""
-    rng = np.random.default_rng(11)
-    osqp_backend = qp_ik.make_backend("osqp", 6, 5)
-    daqp_backend = qp_ik.make_backend("daqp", 6, 5)
-    for m in [0, 3, 5, 1, 4]:
-        A = rng.normal(size=(8, 6))
-        H = A.T @ A + 1e-3 * np.eye(6)
-        g = rng.normal(size=6)
-        G, h = rng.normal(size=(m, 6)), rng.uniform(0.0, 0.5, m)
-        lb, ub = -rng.uniform(0.05, 0.3, 6), rng.uniform(0.05, 0.3, 6)
-        x_osqp = osqp_backend.solve(H, g, G, h, lb, ub)
-        x_daqp = daqp_backend.solve(H, g, G, h, lb, ub)
-        assert np.allclose(x_osqp, x_daqp, atol=1e-6)
-        assert np.all(x_osqp >= lb) and np.all(x_osqp <= ub)
-        if m:
-            assert np.all(G @ x_osqp <= h + 1e-7)
-
-
 @settings(max_examples=15)
 @given(unit6, noise6)
 def test_axis_target_leaves_the_roll_free(u, noise):
@@ -323,7 +302,7 @@ def test_hybrid_takes_the_other_branch_when_the_chosen_one_collides(monkeypatch)
     T = PRESET.fk(Q_A)
     result = qp_ik.solve(PRESET, AxisTarget(T[:3, 3], T[:3, 2]), obstacles=[box])
     assert result.path == "closed_form" and result.seed == "branch 1" and np.array_equal(result.q, q_other)
-    assert "patient" in str(result.branch_reports[0][1])
+    assert "patient" in str(result.branch_reports[0].validity)
 
 
 def test_hybrid_goes_around_a_blocked_branch(monkeypatch):
@@ -332,7 +311,7 @@ def test_hybrid_goes_around_a_blocked_branch(monkeypatch):
     result = qp_ik.solve(PRESET, AxisTarget(T[:3, 3], T[:3, 2]), q_current=Q_A, obstacles=[blocking_box()])
     assert result.success and result.path == "qp", result.reason
     assert result.validity.reachable
-    assert any("patient" in str(r) for _, r in result.branch_reports)
+    assert any("patient" in str(b.validity) for b in result.branch_reports)
 
 
 def test_hybrid_reports_failure_without_a_colliding_answer(monkeypatch):
@@ -344,24 +323,6 @@ def test_hybrid_reports_failure_without_a_colliding_answer(monkeypatch):
     assert "branch 0" in result.reason and "patient" in result.reason and "QP from" in result.reason
     if np.all(np.isfinite(result.q)):
         assert validity.check(PRESET, result.q, obstacles=[patient]).reachable
-
-
-@settings(max_examples=20)
-@given(unit6, st.floats(0.3, 0.9))
-def test_closed_form_pose_of_axis_and_aim_targets(u, distance):
-    """The full pose handed to the closed form meets the 5-DOF/aim target and keeps q_current's roll."""
-    q = PRESET.lower + u * (PRESET.upper - PRESET.lower)
-    T_ref = PRESET.fk(q)
-    T = PRESET.fk(np.clip(q + 0.1, PRESET.lower, PRESET.upper))
-    axis = qp_ik._closed_form_pose(PRESET, AxisTarget(T[:3, 3], T[:3, 2]), q)
-    assert np.allclose(axis[:3, 3], T[:3, 3]) and np.allclose(axis[:3, 2], T[:3, 2])
-    # the least rotation taking the reference beam onto the target beam: its axis is normal to both
-    delta = pin.log3(T_ref[:3, :3].T @ axis[:3, :3])
-    assert abs((T_ref[:3, :3] @ delta) @ T_ref[:3, 2]) < 1e-9
-    point = T[:3, 3] + distance * T[:3, 2]
-    aim = qp_ik._closed_form_pose(PRESET, AimTarget(point, (0.3, 0.9)), q)
-    w = point - aim[:3, 3]
-    assert np.linalg.norm(w - (w @ aim[:3, 2]) * aim[:3, 2]) < 1e-9 and 0.3 - 1e-9 <= w @ aim[:3, 2] <= 0.9 + 1e-9
 
 
 @pytest.fixture
@@ -415,3 +376,25 @@ def test_ur5_reaches_random_reachable_targets():
         pin.framesForwardKinematics(model, data, run.q)
         assert np.linalg.norm(data.oMf[frame].translation - T[:3, 3]) <= 1.01 * TOL
         assert np.linalg.norm(pin.log3(T[:3, :3].T @ data.oMf[frame].rotation)) <= 1.01 * TOL
+
+
+# --- the decision path of the one solve -------------------------------------------------------------------
+def test_acceptance_rule_decides_and_failures_are_structured():
+    T = PRESET.fk(Q_A)
+    refused = qp_ik.solve(PRESET, T, q_current=Q_A, accept=lambda report: False)
+    assert not refused.success and refused.failure is qp_ik.Failure.NOT_REACHED
+    assert all(not b.accepted for b in refused.branch_reports)
+    converged = [a for a in refused.attempts if a.status is qp_ik.RunStatus.REJECTED]
+    assert converged and all(not a.success and a.rejection is not None for a in converged)
+    assert "rejected by the acceptance rule" in refused.reason
+    assert refused.reasons == tuple(refused.reason.split(" | "))
+    closed_only = qp_ik.solve(PRESET, T, q_current=Q_A, accept=lambda report: False, qp=False)
+    assert closed_only.failure is qp_ik.Failure.QP_NOT_RUN and closed_only.attempts == ()
+    assert closed_only.path == qp_ik.Path.NONE and np.all(np.isnan(closed_only.q))
+    taken = qp_ik.solve(PRESET, T, q_current=Q_A)
+    assert taken.success and taken.failure is None and taken.reason is None and taken.reasons == ()
+
+
+def test_scene_or_obstacles_not_both():
+    with pytest.raises(QPIKError, match="either"):
+        qp_ik.solve(PRESET, PRESET.fk(Q_A), obstacles=[blocking_box()], scene=SCENE)

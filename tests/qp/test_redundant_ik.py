@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 import carmkin
@@ -16,6 +16,7 @@ from carmkin.qp_ik import (
     QPIKError,
     is_table_joint,
     joint_weights,
+    solve,
     solve_redundant,
 )
 from carmkin.robot.collision import CollisionScene
@@ -26,15 +27,16 @@ TABLE = np.array([is_table_joint(n) for n in MOTORIZED.joint_names])
 MARGIN = 0.01
 
 
-def valid_configuration(seed: int, inset: float = 0.1, clearance: float = 2 * MARGIN) -> np.ndarray:
-    """A uniform configuration inside the ranges shrunk by ``inset`` of their width, pairs >= ``clearance``
-    (m) apart."""
-    rng = np.random.default_rng(seed)
+unit11 = st.lists(st.floats(0.0, 1.0), min_size=11, max_size=11).map(np.array)
+
+
+def valid_configuration(u, inset: float = 0.1, clearance: float = 2 * MARGIN) -> np.ndarray:
+    """The drawn point ``u`` (11,) of the unit cube in the ranges shrunk by ``inset`` of their width; the
+    example is discarded unless every pair is >= ``clearance`` (m) apart."""
     lo, hi = MOTORIZED.lower, MOTORIZED.upper
-    while True:
-        q = rng.uniform(lo + inset * (hi - lo), hi - inset * (hi - lo))
-        if SCENE.distances(q=q).min() >= clearance:
-            return q
+    q = lo + inset * (hi - lo) + u * (1 - 2 * inset) * (hi - lo)
+    assume(SCENE.distances(q=q).min() >= clearance)
+    return q
 
 
 def pinocchio_pose(q) -> np.ndarray:
@@ -63,20 +65,20 @@ def test_bad_preference_and_free_names_raise():
     with pytest.raises(QPIKError, match="prefer"):
         joint_weights(MOTORIZED, prefer="floor")
     with pytest.raises(QPIKError, match="free"):
-        solve_redundant(MOTORIZED, MOTORIZED.fk(np.zeros(11)), free=("vertical", "elbow"))
+        solve(MOTORIZED, MOTORIZED.fk(np.zeros(11)), free=("vertical", "elbow"))
 
 
-@settings(max_examples=8)
-@given(st.integers(0, 10_000))
-def test_preference_changes_which_joints_move(seed):
+@settings(max_examples=8, deadline=None)
+@given(unit11, st.lists(st.floats(-1.0, 1.0), min_size=11, max_size=11).map(np.array))
+def test_preference_changes_which_joints_move(u, noise):
     """From q0 to a target near it: prefer="carm" moves the table less and the C-arm more than prefer="table"."""
-    q0 = valid_configuration(seed, clearance=0.1)  # far from every collision: the QP runs free of them
-    rng = np.random.default_rng(seed + 1)
-    q1 = q0 + 0.02 * rng.uniform(-1, 1, q0.shape) * (MOTORIZED.upper - MOTORIZED.lower)
+    q0 = valid_configuration(u, clearance=0.1)  # far from every collision: the QP runs free of them
+    assume(np.abs(noise).max() > 0.1)
+    q1 = q0 + 0.02 * noise * (MOTORIZED.upper - MOTORIZED.lower)
     target = MOTORIZED.fk(q1)
     moves = {}
     for prefer in ("carm", "table"):
-        result = solve_redundant(MOTORIZED, target, q_current=q0, prefer=prefer, closed_form_seeds=False)
+        result = solve(MOTORIZED, target, q_current=q0, prefer=prefer, closed_form=False)
         assert result.success, result.reason
         assert result.seed == "q_current"
         dq = result.q - q0
@@ -85,12 +87,13 @@ def test_preference_changes_which_joints_move(seed):
     assert moves["carm"][1] > moves["table"][1]
 
 
-@settings(max_examples=15)
-@given(st.integers(0, 10_000))
-def test_qp_solution_valid_and_pinocchio_agrees_with_closed_form_fk(seed):
-    q_true = valid_configuration(seed, inset=0.0)
+@settings(max_examples=15, deadline=None)
+@given(unit11)
+def test_qp_solution_valid_and_pinocchio_agrees_with_closed_form_fk(u):
+    """The one solve without q_current on the motorized preset (single-axis closed form, then the QP)."""
+    q_true = valid_configuration(u, inset=0.0)
     target = MOTORIZED.fk(q_true)
-    result = solve_redundant(MOTORIZED, target, random_seeds=4, rng_seed=seed)
+    result = solve(MOTORIZED, target)
     assert result.success, result.reason
     q = result.q
     assert np.all(q >= MOTORIZED.lower - 1e-12) and np.all(q <= MOTORIZED.upper + 1e-12)
@@ -99,19 +102,26 @@ def test_qp_solution_valid_and_pinocchio_agrees_with_closed_form_fk(seed):
     assert np.abs(MOTORIZED.fk(q) - target).max() <= 1e-5
 
 
-@settings(max_examples=10)
-@given(st.integers(0, 10_000), st.sampled_from(("table_translation", "table_lateral")))
-def test_single_axis_closed_form_and_qp_reach_the_same_pose(seed, active):
+@settings(max_examples=10, deadline=None)
+@given(unit11, st.sampled_from(("table_translation", "table_lateral")))
+def test_single_axis_closed_form_and_qp_reach_the_same_pose(u, active):
     """Only ``active`` and the C-arm free, other table joints held: table_ik and the QP both land on T."""
-    q_true = valid_configuration(seed)
+    q_true = valid_configuration(u)
     target = MOTORIZED.fk(q_true)
     free = (active,) + MOTORIZED.joint_names[-5:]
     closed = solve_single_axis(MOTORIZED, target, active, q_held=q_true)
-    qp = solve_redundant(MOTORIZED, target, q_current=np.where(np.isin(MOTORIZED.joint_names, free), 0.0, q_true),
-                         free=free, extra_seeds=closed.solutions[np.all(np.isfinite(closed.solutions), axis=1)],
-                         closed_form_seeds=False, random_seeds=4, rng_seed=seed)
+    qp = solve(MOTORIZED, target, q_current=np.where(np.isin(MOTORIZED.joint_names, free), 0.0, q_true),
+               free=free, seeds=closed.solutions[np.all(np.isfinite(closed.solutions), axis=1)],
+               closed_form=False, random_seeds=4)
     assert qp.success, qp.reason
     held = ~np.isin(MOTORIZED.joint_names, free)
     assert np.array_equal(qp.q[held], q_true[held])  # locked joints did not move
     assert np.abs(MOTORIZED.fk(closed.q) - target).max() <= 1e-9
     assert np.abs(pinocchio_pose(qp.q) - pinocchio_pose(closed.q)).max() <= 1e-5
+
+
+def test_solve_redundant_is_an_alias_of_solve():
+    """The deprecated name gives the one solve's answer."""
+    target = MOTORIZED.fk(0.5 * (MOTORIZED.lower + MOTORIZED.upper) + 0.01)
+    old, new = solve_redundant(MOTORIZED, target), solve(MOTORIZED, target)
+    assert old.success and new.success and np.array_equal(old.q, new.q) and old.path == new.path

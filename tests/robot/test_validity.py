@@ -139,3 +139,17 @@ def test_bad_configuration_is_rejected():
         validity.check(PRESET, np.full(6, np.nan))
     with pytest.raises(InvalidConfigurationError, match="margin"):
         validity.check(PRESET, np.zeros(6), margin=-1.0)
+
+
+def test_reasons_are_rendered_from_the_fields_in_mm_and_degrees():
+    from carmkin.robot.validity import NOT_IN_CONE, Contact, JointViolation, ValidityReport
+
+    report = ValidityReport(q=np.zeros(6), joints=(JointViolation("wigwag", np.radians(100.0), np.radians(10.0)),
+                                                   JointViolation("vertical", 0.5, 0.02, prismatic=True)),
+                            collisions=(Contact("dh_frame_6_3", "table_top", -0.004),), table_in_cone=False,
+                            min_distance=-0.004, margin=0.01)
+    assert report.reasons == ("joint wigwag out of range by +10 ° (value 100 °)",
+                              "joint vertical out of range by +20 mm (value 500 mm)",
+                              "dh_frame_6 intersects table_top (dh_frame_6_3/table_top, distance -4 mm)",
+                              NOT_IN_CONE)
+    assert not report.valid and not report.reachable and str(report) == "; ".join(report.reasons)

@@ -1,0 +1,65 @@
+"""Settings, errors and named tolerances of the QP IK (SI units)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from carmkin.errors import CarmkinError
+
+#: A run counts as clear of obstacles when every pair is at least ``safety_margin - MARGIN_TOLERANCE`` apart (m).
+MARGIN_TOLERANCE = 1e-6
+#: A joint within this of a bound (m or rad) is reported as "at its limit" in a stalled run.
+AT_LIMIT_TOLERANCE = 1e-9
+#: Frame of the X-ray source, the end effector of the C-arm chain.
+SOURCE_FRAME = "xray_source"
+
+
+class QPIKError(CarmkinError):
+    """Bad input to the QP IK (unsupported model, unknown backend, bad option, bad target)."""
+
+
+@dataclass(frozen=True)
+class QPIKOptions:
+    """Settings of the QP IK (SI units).
+
+    position_tolerance (m), angle_tolerance (rad): convergence test on every task. max_iterations.
+    damping, error_damping: ``lambda = damping + error_damping * E``. max_step: bound on each |dq_i|
+    (m or rad) per iteration. safety_margin (m): minimum distance kept between collision pairs.
+    influence_distance (m): pairs farther than this add no constraint (broad phase). collision_gain in
+    (0, 1]: fraction of the gap to the margin one step may close. stall_step: a step below this
+    (inf-norm) without convergence stops the iteration as stalled.
+    """
+
+    position_tolerance: float = 1e-6
+    angle_tolerance: float = 1e-6
+    max_iterations: int = 100
+    damping: float = 1e-10
+    error_damping: float = 1e-3
+    max_step: float = 0.3
+    safety_margin: float = 0.01
+    influence_distance: float = 0.1
+    collision_gain: float = 0.5
+    stall_step: float = 1e-12
+    progress_window: int = 10
+    progress_ratio: float = 0.9
+
+    def __post_init__(self) -> None:
+        positive = ("position_tolerance", "angle_tolerance", "max_step", "influence_distance", "collision_gain",
+                    "stall_step", "error_damping", "damping")
+        for name in positive:
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0):
+                raise QPIKError(f"QPIKOptions.{name} must be finite and > 0, got {value}")
+        if not (np.isfinite(self.safety_margin) and self.safety_margin >= 0):
+            raise QPIKError(f"QPIKOptions.safety_margin must be finite and >= 0 (m), got {self.safety_margin}")
+        if self.collision_gain > 1:
+            raise QPIKError(f"QPIKOptions.collision_gain must be in (0, 1], got {self.collision_gain}")
+        if self.influence_distance <= self.safety_margin:
+            raise QPIKError("QPIKOptions.influence_distance must exceed safety_margin")
+        if int(self.progress_window) < 1 or not (0 < self.progress_ratio <= 1):
+            raise QPIKError(f"QPIKOptions.progress_window must be >= 1 and progress_ratio in (0, 1], got "
+                            f"{self.progress_window}, {self.progress_ratio}")
+        if int(self.max_iterations) < 1:
+            raise QPIKError(f"QPIKOptions.max_iterations must be >= 1, got {self.max_iterations}")
