@@ -26,7 +26,8 @@ Selection (§4.4.2, in order): within the joint ranges; then the smaller sum of 
 from ``q_current`` (zero configuration when none is given); then the smaller sum of translational ones;
 ties keep branch 0. Angles are in (−π, π], except where a joint's range reaches beyond ±π (the angular
 joint spans ±190°): the representative ``θ + 2πk`` inside the range nearest to ``q_current`` is returned.
-Nothing is clipped: out-of-range joints are reported in :attr:`BranchStatus.excess`.
+Nothing is clipped: out-of-range joints are reported in :attr:`BranchStatus.excess`; a value within
+:data:`~carmkin.model.params.JOINT_RANGE_TOLERANCE` of a limit (1e-9 m or rad) is in range.
 """
 
 from __future__ import annotations
@@ -38,8 +39,9 @@ from functools import cached_property
 import numpy as np
 
 from carmkin.errors import CarmkinError, InvalidConfigurationError
-from carmkin.model.params import JOINT_NAMES, PRISMATIC
-from carmkin.transforms import RIGID_TOLERANCE, check_rigid_transform
+from carmkin.model import singular_cases
+from carmkin.model.params import JOINT_NAMES, JOINT_RANGE_TOLERANCE, PRISMATIC
+from carmkin.transforms import RIGID_TOLERANCE, check_rigid_transform, pose_error, wrap_angle
 
 #: Below this |det J| (eq. 4.7, dimensionless) a pose is treated as singular and solved numerically. The
 #: closed form loses about eps/|factor| of accuracy; at 1e-5 that stays ~1e-10 m / rad for poses within a
@@ -50,8 +52,9 @@ SINGULAR_TOLERANCE = 1e-5
 CASE_TOLERANCE = SINGULAR_TOLERANCE ** (1.0 / 3.0)
 #: Residual (m, rad) a numerical solution must reach.
 NUMERICAL_TOLERANCE = 1e-9
-#: Names of the singular cases of §4.3.2: (a) sin γ1 = 0, (b) cos θ4 = 0, (c) sin(θ2 + γ3) = 0.
-SINGULAR_CASES = ("a_table_parallel_to_vertical", "b_orbital_parallel_to_wigwag", "c_table_parallel_to_horizontal")
+#: The singular cases of §4.3.2 (:class:`~carmkin.model.singular_cases.SingularCase`): (a) sin γ1 = 0,
+#: (b) cos θ4 = 0, (c) sin(θ2 + γ3) = 0; the one vocabulary shared with :mod:`carmkin.singularity`.
+SINGULAR_CASES = singular_cases.CASES
 #: Movement sums that differ by less than this (rad or m) count as equal in the selection rules.
 TIE_TOLERANCE = 1e-12
 
@@ -213,6 +216,9 @@ class ClosedFormIK:
         self.c3, self.s3 = math.cos(system.setup.gamma3), math.sin(system.setup.gamma3)
         self.lower = tuple(float(v) for v in system.lower)
         self.upper = tuple(float(v) for v in system.upper)
+        # the limits widened by the range tolerance: a value on a limit is in range
+        self.lower_ok = tuple(v - JOINT_RANGE_TOLERANCE for v in self.lower)
+        self.upper_ok = tuple(v + JOINT_RANGE_TOLERANCE for v in self.upper)
         self.names = JOINT_NAMES
         # revolute joints whose range reaches beyond (−π, π]: candidates θ + 2πk, k in wrap_k[j]
         self.wrap = {}
@@ -279,14 +285,10 @@ class ClosedFormIK:
     def representatives(self, q: list, ref) -> list:
         """Angles of ``q`` in (−π, π], or the in-range representative nearest to ``ref`` (in place)."""
         for j in _REVOLUTE:
-            t = q[j]
-            if t <= -math.pi:
-                t += _TWO_PI
-            elif t > math.pi:
-                t -= _TWO_PI
+            t = wrap_angle(q[j])
             ks = self.wrap.get(j)
             if ks is not None:
-                lo, hi, r = self.lower[j], self.upper[j], ref[j]
+                lo, hi, r = self.lower_ok[j], self.upper_ok[j], ref[j]
                 best = None
                 for k in ks:
                     c = t + k * _TWO_PI
@@ -302,9 +304,9 @@ class ClosedFormIK:
         out = {}
         for j in range(6):
             v = q[j]
-            if v < self.lower[j]:
+            if v < self.lower_ok[j]:
                 out[self.names[j]] = v - self.lower[j]
-            elif v > self.upper[j]:
+            elif v > self.upper_ok[j]:
                 out[self.names[j]] = v - self.upper[j]
             elif v != v:  # NaN
                 out[self.names[j]] = math.nan
@@ -326,10 +328,8 @@ class ClosedFormIK:
         return 1 if tr1 < tr0 - TIE_TOLERANCE else 0
 
     def singular_cases(self, det_j: float, c4: float, f_c: float) -> tuple:
-        """Names of the cases whose factor of det J is below :data:`CASE_TOLERANCE`."""
-        factors = (self.sin_gamma1, c4, f_c)
-        names = tuple(n for n, f in zip(SINGULAR_CASES, factors) if abs(f) < CASE_TOLERANCE)
-        return names or (SINGULAR_CASES[int(np.argmin(np.abs(factors)))],)
+        """The cases (:class:`SingularCase`) whose factor of det J is below :data:`CASE_TOLERANCE`."""
+        return singular_cases.cases_below((self.sin_gamma1, c4, f_c), CASE_TOLERANCE)
 
     def solve(self, T: np.ndarray, rows, q_ref) -> IKResult:
         q0, q1, det_j, det2 = self.angles_and_translations(rows)
@@ -345,8 +345,6 @@ class ClosedFormIK:
 
     def residual(self, q, T) -> float:
         """max(position error m, rotation angle rad) of the closed-form FK of ``q`` against ``T``."""
-        from carmkin.analytic.dls import pose_error
-
         return max(pose_error(self.system.closed_form.pose(q), np.asarray(T, dtype=float)))
 
     # --- singular path -------------------------------------------------------------------------------
@@ -469,9 +467,7 @@ class ClosedFormIK:
         self._representatives_batch(q, ref, not np.any(q_ref))
         excess = np.zeros((2, 6, n))
         for j in range(6):
-            lo, hi = self.lower[j], self.upper[j]
-            v = q[:, j]
-            excess[:, j] = np.minimum(v - lo, 0.0) + np.maximum(v - hi, 0.0)
+            excess[:, j] = self._excess_batch(q[:, j], j)
         within = np.all(excess == 0.0, axis=1)
         chosen = self._choose_batch(q, within, ref)
         q = np.ascontiguousarray(q.transpose(0, 2, 1))
@@ -479,7 +475,6 @@ class ClosedFormIK:
         singular_pose = ~(np.abs(det_j) >= SINGULAR_TOLERANCE) | ~np.isfinite(q[..., (0, 1, 3)].sum(axis=(0, 2)))
         singular = np.zeros((n, 3), dtype=bool)
         reached = np.ones((2, n), dtype=bool)
-        lower, upper = np.array(self.lower), np.array(self.upper)
         for i in np.flatnonzero(singular_pose):  # rare: the numerical fallback, pose by pose
             q_i = q_ref[i] if q_ref.ndim == 2 else q_ref
             closed = self.angles_and_translations(T[i].tolist())
@@ -496,9 +491,17 @@ class ClosedFormIK:
             singular[i] = [c in result.singular for c in SINGULAR_CASES]
             reached[:, i] = [b.reached for b in result.branches]
             within[:, i] = [b.within_limits for b in result.branches]
-            excess[:, i] = np.minimum(q[:, i] - lower, 0.0) + np.maximum(q[:, i] - upper, 0.0)
+            for j in range(6):
+                excess[:, i, j] = self._excess_batch(q[:, i, j], j)
             chosen[i] = result.chosen
         return BatchResult(q, chosen, within, excess, singular, singular_pose, reached, det_j, self.system, T)
+
+    def _excess_batch(self, v: np.ndarray, j: int) -> np.ndarray:
+        """Vectorized :meth:`excess` of joint ``j`` for values ``v``: signed excess, 0 within the range
+        widened by :data:`JOINT_RANGE_TOLERANCE` (NaN stays NaN)."""
+        lo, hi = self.lower[j], self.upper[j]
+        out = np.where(v < self.lower_ok[j], v - lo, np.where(v > self.upper_ok[j], v - hi, 0.0))
+        return np.where(np.isnan(v), np.nan, out)
 
     def _representatives_batch(self, q: np.ndarray, ref: np.ndarray, zero_ref: bool) -> None:
         """Vectorized :meth:`representatives` on q (2, 6, N) with ref (6, N) or (6, 1), in place."""
@@ -508,7 +511,7 @@ class ClosedFormIK:
             ks = self.wrap.get(j)
             if ks is None:
                 continue
-            lo, hi = self.lower[j], self.upper[j]
+            lo, hi = self.lower_ok[j], self.upper_ok[j]
             inside = (t >= lo) & (t <= hi)
             shift = np.zeros(t.shape)
             best_d = None if zero_ref else np.where(inside, np.abs(t - ref[j]), np.inf)

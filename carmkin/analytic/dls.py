@@ -20,7 +20,7 @@ import numpy as np
 import pinocchio as pin
 
 from carmkin.errors import CarmkinError
-from carmkin.transforms import check_rigid_transform
+from carmkin.transforms import check_rigid_transform, pose_error
 
 #: Default convergence threshold on the pose residual (m and rad).
 TOLERANCE = 1e-9
@@ -44,16 +44,6 @@ class DLSResult:
     angle_error: float
     iterations: int
     success: bool
-
-
-def pose_error(T: np.ndarray, T_target: np.ndarray) -> tuple[float, float]:
-    """``(‖p − p*‖ in m, rotation angle of Rᵀ R* in rad)`` between two 4x4 poses."""
-    dp = float(np.linalg.norm(T[:3, 3] - T_target[:3, 3]))
-    M = T[:3, :3].T @ T_target[:3, :3]
-    # atan2(sin, cos) of the angle: arccos of the trace alone is ill-conditioned near 0
-    cos = (float(np.trace(M)) - 1.0) / 2.0
-    sin = 0.5 * math.sqrt((M[2, 1] - M[1, 2]) ** 2 + (M[0, 2] - M[2, 0]) ** 2 + (M[1, 0] - M[0, 1]) ** 2)
-    return dp, math.atan2(sin, cos)
 
 
 class DampedLeastSquares:

@@ -28,7 +28,7 @@ from scipy.optimize import brentq
 from carmkin import imaging
 from carmkin.errors import CarmkinError, InvalidConfigurationError
 from carmkin.robot.collision import CollisionScene, Obstacle
-from carmkin.transforms import check_rigid_transform
+from carmkin.transforms import check_rigid_transform, pose_error, segment_box_interval
 
 
 class PanoramaError(CarmkinError):
@@ -84,11 +84,8 @@ class Shot:
 
 
 def pose_residual(T, T_target) -> float:
-    """max(position error (m), rotation angle (rad)) between two poses."""
-    dp = np.linalg.norm(T[:3, 3] - T_target[:3, 3])
-    E = T_target[:3, :3].T @ T[:3, :3]
-    sin = 0.5 * np.linalg.norm([E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1]])
-    return float(max(dp, np.arctan2(sin, 0.5 * (np.trace(E) - 1.0))))
+    """max(position error (m), rotation angle (rad)) between two poses (:func:`carmkin.transforms.pose_error`)."""
+    return max(pose_error(T, T_target))
 
 
 def _category(report) -> str:
@@ -239,21 +236,11 @@ class PanoramaPlanner:
         Falls back to half the source-to-detector distance when the axis misses the table top.
         """
         table = self.system.table
-        lo = np.asarray(table.top_center) - 0.5 * np.asarray(table.top_size)
-        hi = np.asarray(table.top_center) + 0.5 * np.asarray(table.top_size)
-        p, z = self.P_ref[:3, 3], self.P_ref[:3, 2]
-        t_exit = np.inf
-        t_enter = -np.inf
-        for k in range(3):
-            if abs(z[k]) < 1e-15:
-                if not lo[k] <= p[k] <= hi[k]:
-                    return 0.5 * self.system.carm.source_to_detector
-                continue
-            a, b = (lo[k] - p[k]) / z[k], (hi[k] - p[k]) / z[k]
-            t_enter, t_exit = max(t_enter, min(a, b)), min(t_exit, max(a, b))
-        if t_enter > t_exit or t_exit <= 0:
+        hit = segment_box_interval(self.P_ref[:3, 3], self.P_ref[:3, 2], table.top_center, table.top_size,
+                                   -np.inf, np.inf)
+        if hit is None or hit[1] <= 0:
             return 0.5 * self.system.carm.source_to_detector
-        return float(t_exit)
+        return hit[1]
 
     def extent(self, s: float, direction, distance: float) -> tuple[float, float]:
         """Interval of the line ``X(σ) = distance·e_z + σ·direction`` (reference frame, m) that the shot

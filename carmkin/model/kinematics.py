@@ -29,7 +29,7 @@ import numpy as np
 from carmkin.errors import InvalidConfigurationError
 from carmkin.transforms import dh_matrix, rot_x, rot_y, translation
 
-from .params import JOINT_NAMES, PRISMATIC, CArmGeometry, TableSetup
+from .params import CARM_JOINT_NAMES, JOINT_NAMES, PRISMATIC, CArmGeometry, TableSetup
 
 
 class DHRow(NamedTuple):
@@ -45,15 +45,14 @@ class DHRow(NamedTuple):
 
 def carm_rows(carm: CArmGeometry) -> tuple[DHRow, ...]:
     """DH rows of the 5-DOF C-arm alone, from its base frame (vertical axis, vertical joint at zero)."""
-    l1, l2, a1, a2 = carm.length_offset, carm.orbital_offset, carm.a1, carm.a2
     constants = (
         (0.0, 0.0, 0.0, 0.0),
         (0.0, 0.0, 0.0, -math.pi / 2),
-        (0.0, l1 - a2, 0.0, 0.0),
-        (-math.pi / 2, 0.0, a1, math.pi / 2),
-        (0.0, 0.0, -(l2 + a1), 0.0),
+        (0.0, carm.arm_length, 0.0, 0.0),
+        (-math.pi / 2, 0.0, carm.a1, math.pi / 2),
+        (0.0, 0.0, -carm.source_to_orbital_axis, 0.0),
     )
-    return tuple(DHRow(name, prism, *row) for name, prism, row in zip(JOINT_NAMES[1:], PRISMATIC[1:], constants))
+    return tuple(DHRow(name, prism, *row) for name, prism, row in zip(CARM_JOINT_NAMES, PRISMATIC[1:], constants))
 
 
 def dh_table(carm: CArmGeometry, setup: TableSetup) -> tuple[DHRow, ...]:
@@ -122,8 +121,8 @@ class ClosedFormFK:
         )
         self.R = K[:3, :3].copy()
         self.p = K[:3, 3].copy()
-        self.L = carm.orbital_offset + carm.a1
-        self.M = carm.length_offset - carm.a2
+        self.L = carm.source_to_orbital_axis
+        self.M = carm.arm_length
         self.a1, self.a2 = carm.a1, carm.a2
         self._R_rows = tuple(tuple(float(v) for v in r) for r in self.R)
         self._p = tuple(float(v) for v in self.p)

@@ -16,9 +16,8 @@ from carmkin.robot.verify import (
     FRAMES,
     closed_form_frames,
     pinocchio_frames,
-    rotation_angle_between,
 )
-from carmkin.transforms import inverse
+from carmkin.transforms import inverse, rotation_angle
 
 TOL = 1e-12
 
@@ -46,7 +45,7 @@ def test_closed_form_equals_pinocchio(system, qs):
     q = np.array(qs)
     a, b = closed_form_frames(system, q), pinocchio_frames(system, q)
     assert np.linalg.norm(a[..., :3, 3] - b[..., :3, 3], axis=-1).max() <= TOL
-    assert rotation_angle_between(a[..., :3, :3], b[..., :3, :3]).max() <= TOL
+    assert rotation_angle(a[..., :3, :3], b[..., :3, :3]).max() <= TOL
 
 
 def _yourdfpy_pose(robot, q, frame: str, root: str = "table") -> np.ndarray:

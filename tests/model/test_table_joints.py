@@ -16,8 +16,8 @@ from carmkin.robot.verify import (
     FRAMES,
     closed_form_frames,
     pinocchio_frames,
-    rotation_angle_between,
 )
+from carmkin.transforms import rotation_angle
 
 MOTORIZED = carmkin.load_preset("siremobile-iso-c3d-motorized-table")
 
@@ -48,7 +48,7 @@ def test_closed_form_equals_pinocchio_with_table_joints(qs):
     q = np.array(qs)
     a, b = closed_form_frames(MOTORIZED, q), pinocchio_frames(MOTORIZED, q)
     assert np.linalg.norm(a[..., :3, 3] - b[..., :3, 3], axis=-1).max() <= 1e-12
-    assert rotation_angle_between(a[..., :3, :3], b[..., :3, :3]).max() <= 1e-12
+    assert rotation_angle(a[..., :3, :3], b[..., :3, :3]).max() <= 1e-12
     assert np.abs(MOTORIZED.fk(q) - np.array([MOTORIZED.fk(qk) for qk in q])).max() <= 1e-15
 
 
