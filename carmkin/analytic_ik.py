@@ -33,6 +33,7 @@ Nothing is clipped: out-of-range joints are reported in :attr:`BranchStatus.exce
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -40,6 +41,8 @@ import numpy as np
 
 from carmkin.errors import CarmkinError, InvalidConfigurationError
 from carmkin.model import singular_cases
+from carmkin.model.kinematics import check_configuration
+from carmkin.model.per_system import per_system
 from carmkin.model.params import JOINT_NAMES, JOINT_RANGE_TOLERANCE, PRISMATIC
 from carmkin.transforms import RIGID_TOLERANCE, check_rigid_transform, pose_error, wrap_angle
 
@@ -188,11 +191,7 @@ class BatchResult:
         """(2, N): max(position error m, rotation angle rad) of FK of each solution against its pose."""
         n = self.solutions.shape[1]
         fk = self._system.fk(self.solutions.reshape(2 * n, 6)).reshape(2, n, 4, 4)
-        dp = np.linalg.norm(fk[..., :3, 3] - self._poses[None, :, :3, 3], axis=-1)
-        M = np.swapaxes(fk[..., :3, :3], -1, -2) @ self._poses[None, :, :3, :3]
-        skew = np.stack((M[..., 2, 1] - M[..., 1, 2], M[..., 0, 2] - M[..., 2, 0], M[..., 1, 0] - M[..., 0, 1]), -1)
-        angle = np.arctan2(0.5 * np.linalg.norm(skew, axis=-1), 0.5 * (np.trace(M, axis1=-2, axis2=-1) - 1.0))
-        return np.maximum(dp, angle)
+        return np.maximum(*pose_error(fk, self._poses[None]))
 
 
 class ClosedFormIK:
@@ -204,7 +203,7 @@ class ClosedFormIK:
                 "the closed-form IK covers the 6-DOF chain of §4.3; this system has extra table joints "
                 f"({', '.join(j.name for j in system.table.joints)}): use carmkin.qp_ik"
             )
-        self.system = system
+        self._system = weakref.ref(system)  # the per-system cache must not keep the system alive
         fk = system.closed_form
         self.R = np.array(fk.R, dtype=float)
         self.p = np.array(fk.p, dtype=float)
@@ -228,6 +227,11 @@ class ClosedFormIK:
                 # θ + 2πk with θ in (−π, π] can reach [lo, hi] only for these k (0 = the principal value)
                 k_min, k_max = math.ceil((lo - math.pi) / _TWO_PI), math.floor((hi + math.pi) / _TWO_PI)
                 self.wrap[j] = tuple(range(k_min, k_max + 1))
+
+    @property
+    def system(self):
+        """The system these constants were built from."""
+        return self._system()
 
     def frame2_terms(self, x0, y0, z0, px, x1, y1, z1, py, x2, y2, z2, pz):
         """The pose entries seen from frame 2, for floats (scalar path) or arrays (batch path).
@@ -566,13 +570,11 @@ def _check_rigid_batch(T) -> tuple[np.ndarray, np.ndarray]:
     return T, rows
 
 
+@per_system
 def solver_for(system) -> ClosedFormIK:
-    """The :class:`ClosedFormIK` of ``system``, built on first use and cached on the (frozen) system."""
-    cache = vars(system)
-    solver = cache.get("_analytic_ik_solver")
-    if solver is None:
-        solver = cache["_analytic_ik_solver"] = ClosedFormIK(system)
-    return solver
+    """The :class:`ClosedFormIK` of ``system``, built on first use and kept while the system lives
+    (:func:`carmkin.model.per_system.per_system`; nothing is written into the frozen system)."""
+    return ClosedFormIK(system)
 
 
 def _rows(T):
@@ -602,11 +604,8 @@ def _reference(q_current, n_joints: int = 6):
         ref = q_current.tolist()
         if math.isfinite(sum(ref)):
             return ref
-    try:
-        ref = np.asarray(q_current, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise InvalidConfigurationError(f"q_current must be numeric, got {type(q_current).__name__}") from exc
-    if ref.shape != (n_joints,) or not np.all(np.isfinite(ref)):
+    ref = check_configuration(q_current, n_joints, "q_current")
+    if ref.ndim != 1:
         raise InvalidConfigurationError(f"q_current must be a finite vector of shape ({n_joints},), got {ref.shape}")
     return tuple(ref.tolist())
 
@@ -636,8 +635,8 @@ def solve_batch(system, Ts, q_current=None) -> BatchResult:
     if q_current is None:
         q_ref = np.zeros(6)
     else:
-        q_ref = np.asarray(q_current, dtype=float)
-        if q_ref.shape not in ((6,), (len(Ts), 6)) or not np.all(np.isfinite(q_ref)):
+        q_ref = check_configuration(q_current, 6, "q_current")
+        if q_ref.shape not in ((6,), (len(Ts), 6)):
             raise InvalidConfigurationError(
                 f"q_current must be finite with shape (6,) or ({len(Ts)}, 6), got {q_ref.shape}")
     return solver.solve_batch(Ts, q_ref, rows)

@@ -13,13 +13,13 @@ Joint limits are not enforced here (callers check ranges and never clip silently
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
 
 from carmkin.errors import CarmkinError
+from carmkin.model.per_system import per_system
 from carmkin.transforms import check_rigid_transform, pose_error
 
 #: Default convergence threshold on the pose residual (m and rad).
@@ -100,13 +100,11 @@ class DampedLeastSquares:
         return DLSResult(q, residual, dp, angle, iterations, residual <= self.tolerance)
 
 
+@per_system
 def solver_for(system) -> DampedLeastSquares:
-    """The :class:`DampedLeastSquares` of ``system``'s ``xray_source``, cached on the system object."""
-    cache = vars(system)
-    solver = cache.get("_numerical_ik_solver")
-    if solver is None:
-        solver = cache["_numerical_ik_solver"] = DampedLeastSquares(system.pinocchio()[0])
-    return solver
+    """The :class:`DampedLeastSquares` of ``system``'s ``xray_source``, built once per system object
+    (:func:`carmkin.model.per_system.per_system`; nothing is written into the frozen system)."""
+    return DampedLeastSquares(system.pinocchio()[0])
 
 
 def solve(system, T, q0) -> DLSResult:

@@ -26,7 +26,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from carmkin.errors import InvalidConfigurationError
+from carmkin.errors import InvalidConfigurationError, InvalidParameterError
 from carmkin.transforms import dh_matrix, rot_x, rot_y, translation
 
 from .params import CARM_JOINT_NAMES, JOINT_NAMES, PRISMATIC, CArmGeometry, TableSetup
@@ -67,8 +67,39 @@ def xray_in_flange(carm: CArmGeometry) -> np.ndarray:
     return translation(y=carm.a2) @ rot_x(math.pi) @ rot_y(math.pi / 2)
 
 
+#: Tolerance (dimensionless) on the unit length and orthogonality of the axes given to
+#: :func:`table_pose_from_xray`.
+AXIS_TOLERANCE = 1e-9
+
+
+def table_pose_from_xray(carm: CArmGeometry, origin, x_axis, z_axis) -> np.ndarray:
+    """Table pose (4, 4) in the C-arm base frame from its pose in the X-ray source frame at zero joints (eq. 4.3).
+
+    ``origin`` (m), ``x_axis`` and ``z_axis`` are the table frame's origin and X0/Z0 axes expressed in the
+    source frame; the axes must be orthonormal (to :data:`AXIS_TOLERANCE`), else
+    :class:`~carmkin.errors.InvalidParameterError`. Feed the result to :meth:`TableSetup.from_pose`.
+    """
+    x_axis, z_axis = np.asarray(x_axis, float), np.asarray(z_axis, float)
+    tol = AXIS_TOLERANCE
+    if abs(np.linalg.norm(x_axis) - 1) > tol or abs(np.linalg.norm(z_axis) - 1) > tol or abs(x_axis @ z_axis) > tol:
+        raise InvalidParameterError(
+            "setup: table_x_axis_in_xray and table_z_axis_in_xray (x_axis, z_axis) must be orthonormal, got "
+            f"{x_axis.tolist()} and {z_axis.tolist()}")
+    T_xray_table = np.eye(4)
+    T_xray_table[:3, :3] = np.column_stack((x_axis, np.cross(z_axis, x_axis), z_axis))
+    T_xray_table[:3, 3] = origin
+    T_base_xray = forward(carm_rows(carm), xray_in_flange(carm), np.zeros(5))
+    return T_base_xray @ T_xray_table
+
+
 def check_configuration(q, n_joints: int = 6, name: str = "q") -> np.ndarray:
-    """Return ``q`` as a float array of shape (n,) or (N, n); raise a typed error otherwise."""
+    """Return ``q`` as a float array of shape (n,) or (N, n); raise a typed error otherwise.
+
+    The one joint-vector check of the library: :class:`~carmkin.errors.InvalidConfigurationError` naming
+    ``name`` for a non-numeric or complex value, a wrong shape, NaN or Inf.
+    """
+    if np.iscomplexobj(q):
+        raise InvalidConfigurationError(f"{name} must be real, got complex values")
     try:
         q = np.asarray(q, dtype=float)
     except (TypeError, ValueError) as exc:
