@@ -226,7 +226,9 @@ class ClosedFormIK:
             if lo < -math.pi or hi > math.pi:
                 # θ + 2πk with θ in (−π, π] can reach [lo, hi] only for these k (0 = the principal value)
                 k_min, k_max = math.ceil((lo - math.pi) / _TWO_PI), math.floor((hi + math.pi) / _TWO_PI)
-                self.wrap[j] = tuple(range(k_min, k_max + 1))
+                # nearest 0 first, as in the batch path, so that ties (equally near to q_current) keep the
+                # principal value in both paths
+                self.wrap[j] = tuple(sorted(range(k_min, k_max + 1), key=abs))
 
     @property
     def system(self):
