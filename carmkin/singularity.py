@@ -45,8 +45,8 @@ import pinocchio as pin
 from carmkin.errors import CarmkinError
 from carmkin.model import singular_cases
 from carmkin.model.kinematics import check_configuration
-from carmkin.model.singular_cases import SingularCase, SingularFactors
 from carmkin.model.params import JOINT_NAMES, PRISMATIC
+from carmkin.model.singular_cases import SingularCase, SingularFactors
 from carmkin.model.system import CArmSystem
 from carmkin.transforms import wrap_angle
 
@@ -396,54 +396,3 @@ def singular_curves(system: CArmSystem, pair: tuple[int, int]) -> list[tuple[str
         if joint in pair:
             out += [(case, joint, wrap_angle(v)) for v in values]
     return out
-
-
-def plot_maps(system: CArmSystem, q, path, pair: tuple[int, int] = (4, 5), n: int = 61,
-              measure: str = "inverse-condition", length: float | None = None):
-    """Write a PNG with two maps: |det J| over (θ2, θ4) and ``measure`` over ``pair``, singular curves overlaid.
-
-    Axes in degrees (revolute) or mm (prismatic); the joint limits are drawn dashed. Returns the figure.
-    """
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(12, 5), layout="constrained")
-    FigureCanvasAgg(fig)
-    panels = (((2, 4), "det"), (tuple(pair), measure))
-    for ax, (pr, meas) in zip(fig.subplots(1, 2), panels):
-        x, y, values = measure_map(system, q, pr, n, meas, length)
-        scale = [1e3 if PRISMATIC[k] else 180.0 / math.pi for k in pr]
-        mesh = ax.pcolormesh(x * scale[0], y * scale[1], values, shading="auto", cmap="viridis")
-        fig.colorbar(mesh, ax=ax, label="|det J| (eq. 4.7)" if meas == "det" else meas)
-        for case, joint, value in singular_curves(system, pr):
-            style = dict(color="red" if case == "b" else "orange", lw=1.5, label=f"case ({case})")
-            k = pr.index(joint)
-            (ax.axvline if k == 0 else ax.axhline)(value * scale[k], **style)
-        r0, r1 = (system.joint_ranges[k] for k in pr)
-        ax.add_patch(_limits_box(r0, r1, scale))
-        ax.set_xlim(x[0] * scale[0], x[-1] * scale[0])
-        ax.set_ylim(y[0] * scale[1], y[-1] * scale[1])
-        ax.set_xlabel(_axis_label(pr[0]))
-        ax.set_ylabel(_axis_label(pr[1]))
-        handles, labels = ax.get_legend_handles_labels()
-        if handles:
-            unique = dict(zip(labels, handles))
-            ax.legend(unique.values(), unique.keys(), loc="upper right", fontsize=8)
-        title = "|det J|" if meas == "det" else meas
-        ax.set_title(f"{title} over ({JOINT_NAMES[pr[0]]}, {JOINT_NAMES[pr[1]]}); sin γ1 = "
-                     f"{math.sin(system.setup.gamma1):+.3f}", fontsize=10)
-    fig.suptitle(f"{system.name}: singularity maps (other joints at q)")
-    fig.savefig(path, dpi=100)
-    return fig
-
-
-def _axis_label(joint: int) -> str:
-    return f"{JOINT_NAMES[joint]} ({'mm' if PRISMATIC[joint] else 'deg'})"
-
-
-def _limits_box(r0, r1, scale):
-    from matplotlib.patches import Rectangle
-
-    return Rectangle((r0.lower * scale[0], r1.lower * scale[1]), (r0.upper - r0.lower) * scale[0],
-                     (r1.upper - r1.lower) * scale[1], fill=False, ls="--", color="white", lw=1.2,
-                     label="joint limits")

@@ -89,6 +89,8 @@ def run(args: argparse.Namespace) -> int:
         status = 0 if ok else 1
     if args.plot:
         pair = pair_of(args.pair)
-        sing.plot_maps(system, q, args.plot, pair=pair, n=args.grid, measure=args.measure, length=length)
+        from carmkin import plots
+
+        plots.singularity_maps(system, q, args.plot, pair=pair, n=args.grid, measure=args.measure, length=length)
         print(f"wrote {args.plot}")
     return status

@@ -364,28 +364,7 @@ class Plan:
 
 
 def plot_validity_map(planner: PanoramaPlanner, us, vs, categories: np.ndarray, path=None, shots=()):
-    """Matplotlib figure of a validity map (categories from :meth:`PanoramaPlanner.validity_map`), the
-    reference image border and the outlines of ``shots``; saved to ``path`` when given."""
-    import matplotlib.pyplot as plt
-    from matplotlib.colors import ListedColormap
-    from matplotlib.patches import Patch
+    """The validity-map figure; drawn by :func:`carmkin.plots.panorama_validity_map`."""
+    from carmkin import plots
 
-    colors = ["#4caf50", "#ff9800", "#e53935", "#9e9e9e", "#212121"]
-    fig, ax = plt.subplots(figsize=(7, 5))
-    du, dv = (us[1] - us[0]) if len(us) > 1 else 1.0, (vs[1] - vs[0]) if len(vs) > 1 else 1.0
-    ax.imshow(categories, cmap=ListedColormap(colors), vmin=-0.5, vmax=len(CATEGORIES) - 0.5, origin="upper",
-              extent=(us[0] - du / 2, us[-1] + du / 2, vs[-1] + dv / 2, vs[0] - dv / 2), interpolation="nearest")
-    border = imaging.image_border(*planner.size)
-    ax.plot(border[:, 0], border[:, 1], "b-", lw=1.5, label="reference image")
-    for k, shot in enumerate(shots):
-        ax.plot(shot.outline[:, 0], shot.outline[:, 1], "w--", lw=1)
-        ax.plot(*shot.principal_point, "w+")
-    ax.set_xlabel("u (px, panorama frame)")
-    ax.set_ylabel("v (px)")
-    ax.set_title("validity of principal points (§4.4.3)")
-    ax.legend(handles=[Patch(color=c, label=n) for c, n in zip(colors, CATEGORIES)], loc="upper left",
-              bbox_to_anchor=(1.01, 1.0), fontsize=7)
-    ax.set_aspect("equal")
-    if path is not None:
-        fig.savefig(path, dpi=110, bbox_inches="tight")
-    return fig
+    return plots.panorama_validity_map(planner, us, vs, categories, path, shots)

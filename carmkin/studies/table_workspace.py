@@ -137,24 +137,7 @@ def table_rows(results: list[ModelReach]) -> list[str]:
 
 
 def plot(results: list[ModelReach], path=None):
-    """Bar chart of the reachable fraction per model; saved to ``path`` when given. Returns the figure."""
-    import matplotlib
+    """Bar chart of the reachable fraction per model (:func:`carmkin.plots.table_reach`); saved to ``path``."""
+    from carmkin import plots
 
-    if path is not None:
-        matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(7, 3.6))
-    fractions = [100 * r.fraction for r in results]
-    ax.bar([LABELS[r.model].replace(" (", "\n(").replace(", ", ",\n", 1) for r in results], fractions,
-           color="tab:blue")
-    for x, f in enumerate(fractions):
-        ax.text(x, f + 1, f"{f:.1f}%", ha="center")
-    ax.set_ylim(0, 110)
-    ax.set_ylabel("desired poses reachable (%)")
-    ax.tick_params(axis="x", labelsize=7)
-    ax.set_title(f"Reach by table DOFs ({len(results[0].reached)} poses)")
-    fig.tight_layout()
-    if path is not None:
-        fig.savefig(path)
-    return fig
+    return plots.table_reach(results, LABELS, path)

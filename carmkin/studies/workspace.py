@@ -18,7 +18,7 @@ Revolute values are compared to the range modulo 2π (:func:`carmkin.analytic.fi
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -284,40 +284,3 @@ def comparison_rows(result: StudyResult) -> list[tuple[str, str, str, str]]:
                     text = _same_precision(value, paper[stat]) if paper else f"{value:.2f}"
                 rows.append((f"{joint} {stat}", key, text, paper[stat] if paper else "—"))
     return rows
-
-
-def plot(result: StudyResult, path=None, joints: Sequence[str] = ("wigwag", "horizontal")):
-    """A matplotlib Figure of the excess (mean ± std, min–max band) and K against table translation, with
-    the dissertation's means and K as red crosses; saved to ``path`` when given."""
-    from matplotlib.figure import (
-        Figure,  # no pyplot: no global backend or figure state is touched
-    )
-
-    fig = Figure(figsize=(5.5 * len(joints), 6.5))
-    axes = fig.subplots(2, len(joints), sharex=True, squeeze=False)
-    d0 = np.array([r.translation * 1e3 for r in result.results])
-    for col, joint in enumerate(joints):
-        stats = [r.joints[joint] for r in result.results]
-        mean, std = np.array([s.mean for s in stats]), np.array([s.std for s in stats])
-        ax = axes[0, col]
-        ax.fill_between(d0, [s.min for s in stats], [s.max for s in stats], alpha=0.25, label="min–max (ours)")
-        ax.errorbar(d0, mean, yerr=std, fmt="o-", capsize=3, label="mean ± std (ours)")
-        paper = DISSERTATION_TABLE_4_5.get(joint)
-        if paper is not None:
-            keys = [translation_key(r.translation) for r in result.results]
-            ref = [(x, paper[k]["mean"], paper[k]["K"]) for x, k in zip(d0, keys) if k in paper]
-            if ref:
-                x, mean_ref, k_ref = zip(*ref)
-                ax.plot(x, mean_ref, "rx", zorder=5, label="mean (dissertation)")
-                axes[1, col].plot(x, k_ref, "rx", zorder=5, label="K (dissertation)")
-        ax.set_title(f"{joint}: excess ({UNITS[joint][0]})")
-        ax.legend(fontsize=8)
-        axes[1, col].bar(d0, [s.K for s in stats], width=30.0, label="K (ours)")
-        axes[1, col].legend(fontsize=8)
-        axes[1, col].set_ylabel("K (poses out of range)")
-        axes[1, col].set_xlabel("table translation d0 (mm)")
-    fig.suptitle(f"5-DOF IK of 6-DOF poses, {result.system} (§4.6.1, Table 4.5)")
-    fig.tight_layout()
-    if path is not None:
-        fig.savefig(path, dpi=120)
-    return fig
