@@ -478,7 +478,8 @@ class ClosedFormIK:
         chosen = self._choose_batch(q, within, ref)
         q = np.ascontiguousarray(q.transpose(0, 2, 1))
         excess = np.ascontiguousarray(excess.transpose(0, 2, 1))
-        singular_pose = ~(np.abs(det_j) >= SINGULAR_TOLERANCE) | ~np.isfinite(q[..., (0, 1, 3)].sum(axis=(0, 2)))
+        with np.errstate(invalid="ignore"):  # inf − inf of an unsolvable pose: NaN, caught here
+            singular_pose = ~(np.abs(det_j) >= SINGULAR_TOLERANCE) | ~np.isfinite(q[..., (0, 1, 3)].sum(axis=(0, 2)))
         singular = np.zeros((n, 3), dtype=bool)
         reached = np.ones((2, n), dtype=bool)
         for i in np.flatnonzero(singular_pose):  # rare: the numerical fallback, pose by pose

@@ -24,12 +24,13 @@ import numpy as np
 
 from carmkin.analytic import five_dof
 from carmkin.errors import CarmkinError
+from carmkin.model.params import CARM_JOINT_NAMES
 from carmkin.model.system import CArmSystem
 from carmkin.qp_ik import AxisTarget, QPIKOptions, solve_redundant
 from carmkin.robot.collision import CollisionScene
 from carmkin.transforms import inverse
 
-CARM = ("vertical", "wigwag", "horizontal", "angular", "orbital")
+CARM = CARM_JOINT_NAMES
 #: Free joints of each model: the C-arm alone, + the paper's translation d0, + the three table translations,
 #: + all table joints (tilts and rotation included).
 MODELS: dict[str, tuple[str, ...]] = {
@@ -81,7 +82,7 @@ def axis_target(T: np.ndarray) -> AxisTarget:
 
 def _five_dof_seeds(system: CArmSystem, T: np.ndarray) -> list[np.ndarray]:
     """Every 5-DOF closed-form branch for the pose T with all table joints at zero, as full q (nq,)."""
-    base = system.dh_frames(np.zeros(system.nq))[1]
+    base = system.carm_base_pose
     sols = five_dof.solve_pose(system.carm, inverse(base) @ T)
     out = []
     for q5, ok in zip(sols.q[0], sols.valid[0]):
