@@ -551,6 +551,16 @@ class ClosedFormIK:
         return pick1.astype(np.intp)
 
 
+def _rigidity(a, b, c, d, e, f, g, h, i):
+    """``(||RᵀR − I||_F², det R)`` of R = [[a, b, c], [d, e, f], [g, h, i]] for floats or arrays: the tests of
+    :func:`check_rigid_transform` written out, since the generic check spends its time in small matrix
+    products (the speed of the scalar and batch paths)."""
+    m00, m11, m22 = a * a + d * d + g * g - 1.0, b * b + e * e + h * h - 1.0, c * c + f * f + i * i - 1.0
+    m01, m02, m12 = a * b + d * e + g * h, a * c + d * f + g * i, b * c + e * f + h * i
+    ortho = m00 * m00 + m11 * m11 + m22 * m22 + 2.0 * (m01 * m01 + m02 * m02 + m12 * m12)
+    return ortho, a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
+
+
 def _check_rigid_batch(T) -> tuple[np.ndarray, np.ndarray]:
     """:func:`check_rigid_transform` for (N, 4, 4), done element-wise on the rows (the generic check spends
     its time in small matrix products); same tests and tolerances. Returns ``(T, rows)`` with ``rows`` the
@@ -559,10 +569,7 @@ def _check_rigid_batch(T) -> tuple[np.ndarray, np.ndarray]:
         T = check_rigid_transform(T, "Ts", batch=True)
     rows = np.ascontiguousarray(T.reshape(len(T), 16).T)
     a, b, c, px, d, e, f, py, g, h, i, pz, l0, l1, l2, l3 = rows
-    m00, m11, m22 = a * a + d * d + g * g - 1.0, b * b + e * e + h * h - 1.0, c * c + f * f + i * i - 1.0
-    m01, m02, m12 = a * b + d * e + g * h, a * c + d * f + g * i, b * c + e * f + h * i
-    ortho = m00 * m00 + m11 * m11 + m22 * m22 + 2.0 * (m01 * m01 + m02 * m02 + m12 * m12)
-    det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
+    ortho, det = _rigidity(a, b, c, d, e, f, g, h, i)
     tol = RIGID_TOLERANCE
     ok = (ortho <= tol * tol) & (np.abs(det - 1.0) <= tol) & (np.abs(l3 - 1.0) <= tol)
     ok &= (np.abs(l0) <= tol) & (np.abs(l1) <= tol) & (np.abs(l2) <= tol) & np.isfinite(px + py + pz)
@@ -589,12 +596,8 @@ def _rows(T):
     (a, b, c, px), (d, e, f, py), (g, h, i, pz), last = rows
     ok = math.isfinite(a + b + c + d + e + f + g + h + i + px + py + pz) and last == [0.0, 0.0, 0.0, 1.0]
     if ok:
-        # ||RᵀR − I||_F and det R, as check_rigid_transform computes them
-        m00, m11, m22 = a * a + d * d + g * g - 1.0, b * b + e * e + h * h - 1.0, c * c + f * f + i * i - 1.0
-        m01, m02, m12 = a * b + d * e + g * h, a * c + d * f + g * i, b * c + e * f + h * i
-        ortho = math.sqrt(m00 * m00 + m11 * m11 + m22 * m22 + 2.0 * (m01 * m01 + m02 * m02 + m12 * m12))
-        det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
-        ok = ortho <= RIGID_TOLERANCE and abs(det - 1.0) <= RIGID_TOLERANCE
+        ortho, det = _rigidity(a, b, c, d, e, f, g, h, i)
+        ok = ortho <= RIGID_TOLERANCE * RIGID_TOLERANCE and abs(det - 1.0) <= RIGID_TOLERANCE
     if not ok:
         check_rigid_transform(T, "T")  # raises InvalidPoseError naming the problem
     return T, rows
