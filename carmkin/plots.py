@@ -136,22 +136,23 @@ def table_reach(results, labels: dict[str, str], path=None) -> Figure:
 VALIDITY_COLORS = ("#4caf50", "#ff9800", "#e53935", "#9e9e9e", "#212121")
 
 
-def panorama_validity_map(planner, us, vs, categories: np.ndarray, path=None, shots=()) -> Figure:
-    """A validity map (categories from :meth:`~carmkin.imaging.panorama.PanoramaPlanner.validity_map`, pixel
-    grid ``us`` × ``vs``), the reference image border and the outlines of ``shots``."""
+def panorama_validity_map(planner, us, vs, categories: np.ndarray, labels: Sequence[str], path=None,
+                          shots=()) -> Figure:
+    """A validity map (category indices from :meth:`~carmkin.imaging.panorama.PanoramaPlanner.validity_map`
+    on the pixel grid ``us`` × ``vs``; ``labels``: the category names, :data:`carmkin.imaging.panorama.CATEGORIES`),
+    the reference image border and the outlines of ``shots``."""
     from matplotlib.colors import ListedColormap
     from matplotlib.patches import Patch
 
-    from carmkin import imaging
-    from carmkin.imaging.panorama import CATEGORIES
+    from carmkin.imaging.camera import image_border
 
     colors = list(VALIDITY_COLORS)
     fig = _figure((7, 5))
     ax = fig.subplots()
     du, dv = (us[1] - us[0]) if len(us) > 1 else 1.0, (vs[1] - vs[0]) if len(vs) > 1 else 1.0
-    ax.imshow(categories, cmap=ListedColormap(colors), vmin=-0.5, vmax=len(CATEGORIES) - 0.5, origin="upper",
+    ax.imshow(categories, cmap=ListedColormap(colors), vmin=-0.5, vmax=len(labels) - 0.5, origin="upper",
               extent=(us[0] - du / 2, us[-1] + du / 2, vs[-1] + dv / 2, vs[0] - dv / 2), interpolation="nearest")
-    border = imaging.image_border(*planner.size)
+    border = image_border(*planner.size)
     ax.plot(border[:, 0], border[:, 1], "b-", lw=1.5, label="reference image")
     for shot in shots:
         ax.plot(shot.outline[:, 0], shot.outline[:, 1], "w--", lw=1)
@@ -159,7 +160,7 @@ def panorama_validity_map(planner, us, vs, categories: np.ndarray, path=None, sh
     ax.set_xlabel("u (px, panorama frame)")
     ax.set_ylabel("v (px)")
     ax.set_title("validity of principal points (§4.4.3)")
-    ax.legend(handles=[Patch(color=c, label=n) for c, n in zip(colors, CATEGORIES)], loc="upper left",
+    ax.legend(handles=[Patch(color=c, label=n) for c, n in zip(colors, labels)], loc="upper left",
               bbox_to_anchor=(1.01, 1.0), fontsize=7)
     ax.set_aspect("equal")
     return _save(fig, path, dpi=110, bbox_inches="tight")

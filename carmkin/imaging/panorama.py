@@ -367,4 +367,4 @@ def plot_validity_map(planner: PanoramaPlanner, us, vs, categories: np.ndarray, 
     """The validity-map figure; drawn by :func:`carmkin.plots.panorama_validity_map`."""
     from carmkin import plots
 
-    return plots.panorama_validity_map(planner, us, vs, categories, path, shots)
+    return plots.panorama_validity_map(planner, us, vs, categories, CATEGORIES, path, shots)
