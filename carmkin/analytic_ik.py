@@ -26,20 +26,25 @@ Selection (§4.4.2, in order): within the joint ranges; then the smaller sum of 
 from ``q_current`` (zero configuration when none is given); then the smaller sum of translational ones;
 ties keep branch 0. Angles are in (−π, π], except where a joint's range reaches beyond ±π (the angular
 joint spans ±190°): the representative ``θ + 2πk`` inside the range nearest to ``q_current`` is returned.
-Nothing is clipped: out-of-range joints are reported in :attr:`BranchStatus.excess`.
+Nothing is clipped: out-of-range joints are reported in :attr:`BranchStatus.excess`; a value within
+:data:`~carmkin.model.params.JOINT_RANGE_TOLERANCE` of a limit (1e-9 m or rad) is in range.
 """
 
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
 
 from carmkin.errors import CarmkinError, InvalidConfigurationError
-from carmkin.model.params import JOINT_NAMES, PRISMATIC
-from carmkin.transforms import RIGID_TOLERANCE, check_rigid_transform
+from carmkin.model import singular_cases
+from carmkin.model.kinematics import check_configuration
+from carmkin.model.per_system import per_system
+from carmkin.model.params import JOINT_NAMES, JOINT_RANGE_TOLERANCE, PRISMATIC
+from carmkin.transforms import RIGID_TOLERANCE, check_rigid_transform, pose_error, wrap_angle
 
 #: Below this |det J| (eq. 4.7, dimensionless) a pose is treated as singular and solved numerically. The
 #: closed form loses about eps/|factor| of accuracy; at 1e-5 that stays ~1e-10 m / rad for poses within a
@@ -50,8 +55,9 @@ SINGULAR_TOLERANCE = 1e-5
 CASE_TOLERANCE = SINGULAR_TOLERANCE ** (1.0 / 3.0)
 #: Residual (m, rad) a numerical solution must reach.
 NUMERICAL_TOLERANCE = 1e-9
-#: Names of the singular cases of §4.3.2: (a) sin γ1 = 0, (b) cos θ4 = 0, (c) sin(θ2 + γ3) = 0.
-SINGULAR_CASES = ("a_table_parallel_to_vertical", "b_orbital_parallel_to_wigwag", "c_table_parallel_to_horizontal")
+#: The singular cases of §4.3.2 (:class:`~carmkin.model.singular_cases.SingularCase`): (a) sin γ1 = 0,
+#: (b) cos θ4 = 0, (c) sin(θ2 + γ3) = 0; the one vocabulary shared with :mod:`carmkin.singularity`.
+SINGULAR_CASES = singular_cases.CASES
 #: Movement sums that differ by less than this (rad or m) count as equal in the selection rules.
 TIE_TOLERANCE = 1e-12
 
@@ -185,11 +191,7 @@ class BatchResult:
         """(2, N): max(position error m, rotation angle rad) of FK of each solution against its pose."""
         n = self.solutions.shape[1]
         fk = self._system.fk(self.solutions.reshape(2 * n, 6)).reshape(2, n, 4, 4)
-        dp = np.linalg.norm(fk[..., :3, 3] - self._poses[None, :, :3, 3], axis=-1)
-        M = np.swapaxes(fk[..., :3, :3], -1, -2) @ self._poses[None, :, :3, :3]
-        skew = np.stack((M[..., 2, 1] - M[..., 1, 2], M[..., 0, 2] - M[..., 2, 0], M[..., 1, 0] - M[..., 0, 1]), -1)
-        angle = np.arctan2(0.5 * np.linalg.norm(skew, axis=-1), 0.5 * (np.trace(M, axis1=-2, axis2=-1) - 1.0))
-        return np.maximum(dp, angle)
+        return np.maximum(*pose_error(fk, self._poses[None]))
 
 
 class ClosedFormIK:
@@ -201,7 +203,7 @@ class ClosedFormIK:
                 "the closed-form IK covers the 6-DOF chain of §4.3; this system has extra table joints "
                 f"({', '.join(j.name for j in system.table.joints)}): use carmkin.qp_ik"
             )
-        self.system = system
+        self._system = weakref.ref(system)  # the per-system cache must not keep the system alive
         fk = system.closed_form
         self.R = np.array(fk.R, dtype=float)
         self.p = np.array(fk.p, dtype=float)
@@ -213,6 +215,9 @@ class ClosedFormIK:
         self.c3, self.s3 = math.cos(system.setup.gamma3), math.sin(system.setup.gamma3)
         self.lower = tuple(float(v) for v in system.lower)
         self.upper = tuple(float(v) for v in system.upper)
+        # the limits widened by the range tolerance: a value on a limit is in range
+        self.lower_ok = tuple(v - JOINT_RANGE_TOLERANCE for v in self.lower)
+        self.upper_ok = tuple(v + JOINT_RANGE_TOLERANCE for v in self.upper)
         self.names = JOINT_NAMES
         # revolute joints whose range reaches beyond (−π, π]: candidates θ + 2πk, k in wrap_k[j]
         self.wrap = {}
@@ -221,7 +226,14 @@ class ClosedFormIK:
             if lo < -math.pi or hi > math.pi:
                 # θ + 2πk with θ in (−π, π] can reach [lo, hi] only for these k (0 = the principal value)
                 k_min, k_max = math.ceil((lo - math.pi) / _TWO_PI), math.floor((hi + math.pi) / _TWO_PI)
-                self.wrap[j] = tuple(range(k_min, k_max + 1))
+                # nearest 0 first, as in the batch path, so that ties (equally near to q_current) keep the
+                # principal value in both paths
+                self.wrap[j] = tuple(sorted(range(k_min, k_max + 1), key=abs))
+
+    @property
+    def system(self):
+        """The system these constants were built from."""
+        return self._system()
 
     def frame2_terms(self, x0, y0, z0, px, x1, y1, z1, py, x2, y2, z2, pz):
         """The pose entries seen from frame 2, for floats (scalar path) or arrays (batch path).
@@ -279,14 +291,10 @@ class ClosedFormIK:
     def representatives(self, q: list, ref) -> list:
         """Angles of ``q`` in (−π, π], or the in-range representative nearest to ``ref`` (in place)."""
         for j in _REVOLUTE:
-            t = q[j]
-            if t <= -math.pi:
-                t += _TWO_PI
-            elif t > math.pi:
-                t -= _TWO_PI
+            t = wrap_angle(q[j])
             ks = self.wrap.get(j)
             if ks is not None:
-                lo, hi, r = self.lower[j], self.upper[j], ref[j]
+                lo, hi, r = self.lower_ok[j], self.upper_ok[j], ref[j]
                 best = None
                 for k in ks:
                     c = t + k * _TWO_PI
@@ -302,9 +310,9 @@ class ClosedFormIK:
         out = {}
         for j in range(6):
             v = q[j]
-            if v < self.lower[j]:
+            if v < self.lower_ok[j]:
                 out[self.names[j]] = v - self.lower[j]
-            elif v > self.upper[j]:
+            elif v > self.upper_ok[j]:
                 out[self.names[j]] = v - self.upper[j]
             elif v != v:  # NaN
                 out[self.names[j]] = math.nan
@@ -326,10 +334,8 @@ class ClosedFormIK:
         return 1 if tr1 < tr0 - TIE_TOLERANCE else 0
 
     def singular_cases(self, det_j: float, c4: float, f_c: float) -> tuple:
-        """Names of the cases whose factor of det J is below :data:`CASE_TOLERANCE`."""
-        factors = (self.sin_gamma1, c4, f_c)
-        names = tuple(n for n, f in zip(SINGULAR_CASES, factors) if abs(f) < CASE_TOLERANCE)
-        return names or (SINGULAR_CASES[int(np.argmin(np.abs(factors)))],)
+        """The cases (:class:`SingularCase`) whose factor of det J is below :data:`CASE_TOLERANCE`."""
+        return singular_cases.cases_below((self.sin_gamma1, c4, f_c), CASE_TOLERANCE)
 
     def solve(self, T: np.ndarray, rows, q_ref) -> IKResult:
         q0, q1, det_j, det2 = self.angles_and_translations(rows)
@@ -345,8 +351,6 @@ class ClosedFormIK:
 
     def residual(self, q, T) -> float:
         """max(position error m, rotation angle rad) of the closed-form FK of ``q`` against ``T``."""
-        from carmkin.analytic.dls import pose_error
-
         return max(pose_error(self.system.closed_form.pose(q), np.asarray(T, dtype=float)))
 
     # --- singular path -------------------------------------------------------------------------------
@@ -469,17 +473,15 @@ class ClosedFormIK:
         self._representatives_batch(q, ref, not np.any(q_ref))
         excess = np.zeros((2, 6, n))
         for j in range(6):
-            lo, hi = self.lower[j], self.upper[j]
-            v = q[:, j]
-            excess[:, j] = np.minimum(v - lo, 0.0) + np.maximum(v - hi, 0.0)
+            excess[:, j] = self._excess_batch(q[:, j], j)
         within = np.all(excess == 0.0, axis=1)
         chosen = self._choose_batch(q, within, ref)
         q = np.ascontiguousarray(q.transpose(0, 2, 1))
         excess = np.ascontiguousarray(excess.transpose(0, 2, 1))
-        singular_pose = ~(np.abs(det_j) >= SINGULAR_TOLERANCE) | ~np.isfinite(q[..., (0, 1, 3)].sum(axis=(0, 2)))
+        with np.errstate(invalid="ignore"):  # inf − inf of an unsolvable pose: NaN, caught here
+            singular_pose = ~(np.abs(det_j) >= SINGULAR_TOLERANCE) | ~np.isfinite(q[..., (0, 1, 3)].sum(axis=(0, 2)))
         singular = np.zeros((n, 3), dtype=bool)
         reached = np.ones((2, n), dtype=bool)
-        lower, upper = np.array(self.lower), np.array(self.upper)
         for i in np.flatnonzero(singular_pose):  # rare: the numerical fallback, pose by pose
             q_i = q_ref[i] if q_ref.ndim == 2 else q_ref
             closed = self.angles_and_translations(T[i].tolist())
@@ -496,9 +498,17 @@ class ClosedFormIK:
             singular[i] = [c in result.singular for c in SINGULAR_CASES]
             reached[:, i] = [b.reached for b in result.branches]
             within[:, i] = [b.within_limits for b in result.branches]
-            excess[:, i] = np.minimum(q[:, i] - lower, 0.0) + np.maximum(q[:, i] - upper, 0.0)
+            for j in range(6):
+                excess[:, i, j] = self._excess_batch(q[:, i, j], j)
             chosen[i] = result.chosen
         return BatchResult(q, chosen, within, excess, singular, singular_pose, reached, det_j, self.system, T)
+
+    def _excess_batch(self, v: np.ndarray, j: int) -> np.ndarray:
+        """Vectorized :meth:`excess` of joint ``j`` for values ``v``: signed excess, 0 within the range
+        widened by :data:`JOINT_RANGE_TOLERANCE` (NaN stays NaN)."""
+        lo, hi = self.lower[j], self.upper[j]
+        out = np.where(v < self.lower_ok[j], v - lo, np.where(v > self.upper_ok[j], v - hi, 0.0))
+        return np.where(np.isnan(v), np.nan, out)
 
     def _representatives_batch(self, q: np.ndarray, ref: np.ndarray, zero_ref: bool) -> None:
         """Vectorized :meth:`representatives` on q (2, 6, N) with ref (6, N) or (6, 1), in place."""
@@ -508,7 +518,7 @@ class ClosedFormIK:
             ks = self.wrap.get(j)
             if ks is None:
                 continue
-            lo, hi = self.lower[j], self.upper[j]
+            lo, hi = self.lower_ok[j], self.upper_ok[j]
             inside = (t >= lo) & (t <= hi)
             shift = np.zeros(t.shape)
             best_d = None if zero_ref else np.where(inside, np.abs(t - ref[j]), np.inf)
@@ -541,6 +551,16 @@ class ClosedFormIK:
         return pick1.astype(np.intp)
 
 
+def _rigidity(a, b, c, d, e, f, g, h, i):
+    """``(||RᵀR − I||_F², det R)`` of R = [[a, b, c], [d, e, f], [g, h, i]] for floats or arrays: the tests of
+    :func:`check_rigid_transform` written out, since the generic check spends its time in small matrix
+    products (the speed of the scalar and batch paths)."""
+    m00, m11, m22 = a * a + d * d + g * g - 1.0, b * b + e * e + h * h - 1.0, c * c + f * f + i * i - 1.0
+    m01, m02, m12 = a * b + d * e + g * h, a * c + d * f + g * i, b * c + e * f + h * i
+    ortho = m00 * m00 + m11 * m11 + m22 * m22 + 2.0 * (m01 * m01 + m02 * m02 + m12 * m12)
+    return ortho, a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
+
+
 def _check_rigid_batch(T) -> tuple[np.ndarray, np.ndarray]:
     """:func:`check_rigid_transform` for (N, 4, 4), done element-wise on the rows (the generic check spends
     its time in small matrix products); same tests and tolerances. Returns ``(T, rows)`` with ``rows`` the
@@ -549,10 +569,7 @@ def _check_rigid_batch(T) -> tuple[np.ndarray, np.ndarray]:
         T = check_rigid_transform(T, "Ts", batch=True)
     rows = np.ascontiguousarray(T.reshape(len(T), 16).T)
     a, b, c, px, d, e, f, py, g, h, i, pz, l0, l1, l2, l3 = rows
-    m00, m11, m22 = a * a + d * d + g * g - 1.0, b * b + e * e + h * h - 1.0, c * c + f * f + i * i - 1.0
-    m01, m02, m12 = a * b + d * e + g * h, a * c + d * f + g * i, b * c + e * f + h * i
-    ortho = m00 * m00 + m11 * m11 + m22 * m22 + 2.0 * (m01 * m01 + m02 * m02 + m12 * m12)
-    det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
+    ortho, det = _rigidity(a, b, c, d, e, f, g, h, i)
     tol = RIGID_TOLERANCE
     ok = (ortho <= tol * tol) & (np.abs(det - 1.0) <= tol) & (np.abs(l3 - 1.0) <= tol)
     ok &= (np.abs(l0) <= tol) & (np.abs(l1) <= tol) & (np.abs(l2) <= tol) & np.isfinite(px + py + pz)
@@ -563,13 +580,11 @@ def _check_rigid_batch(T) -> tuple[np.ndarray, np.ndarray]:
     return T, rows
 
 
+@per_system
 def solver_for(system) -> ClosedFormIK:
-    """The :class:`ClosedFormIK` of ``system``, built on first use and cached on the (frozen) system."""
-    cache = vars(system)
-    solver = cache.get("_analytic_ik_solver")
-    if solver is None:
-        solver = cache["_analytic_ik_solver"] = ClosedFormIK(system)
-    return solver
+    """The :class:`ClosedFormIK` of ``system``, built on first use and kept while the system lives
+    (:func:`carmkin.model.per_system.per_system`; nothing is written into the frozen system)."""
+    return ClosedFormIK(system)
 
 
 def _rows(T):
@@ -581,12 +596,8 @@ def _rows(T):
     (a, b, c, px), (d, e, f, py), (g, h, i, pz), last = rows
     ok = math.isfinite(a + b + c + d + e + f + g + h + i + px + py + pz) and last == [0.0, 0.0, 0.0, 1.0]
     if ok:
-        # ||RᵀR − I||_F and det R, as check_rigid_transform computes them
-        m00, m11, m22 = a * a + d * d + g * g - 1.0, b * b + e * e + h * h - 1.0, c * c + f * f + i * i - 1.0
-        m01, m02, m12 = a * b + d * e + g * h, a * c + d * f + g * i, b * c + e * f + h * i
-        ortho = math.sqrt(m00 * m00 + m11 * m11 + m22 * m22 + 2.0 * (m01 * m01 + m02 * m02 + m12 * m12))
-        det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
-        ok = ortho <= RIGID_TOLERANCE and abs(det - 1.0) <= RIGID_TOLERANCE
+        ortho, det = _rigidity(a, b, c, d, e, f, g, h, i)
+        ok = ortho <= RIGID_TOLERANCE * RIGID_TOLERANCE and abs(det - 1.0) <= RIGID_TOLERANCE
     if not ok:
         check_rigid_transform(T, "T")  # raises InvalidPoseError naming the problem
     return T, rows
@@ -599,11 +610,8 @@ def _reference(q_current, n_joints: int = 6):
         ref = q_current.tolist()
         if math.isfinite(sum(ref)):
             return ref
-    try:
-        ref = np.asarray(q_current, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise InvalidConfigurationError(f"q_current must be numeric, got {type(q_current).__name__}") from exc
-    if ref.shape != (n_joints,) or not np.all(np.isfinite(ref)):
+    ref = check_configuration(q_current, n_joints, "q_current")
+    if ref.ndim != 1:
         raise InvalidConfigurationError(f"q_current must be a finite vector of shape ({n_joints},), got {ref.shape}")
     return tuple(ref.tolist())
 
@@ -633,8 +641,8 @@ def solve_batch(system, Ts, q_current=None) -> BatchResult:
     if q_current is None:
         q_ref = np.zeros(6)
     else:
-        q_ref = np.asarray(q_current, dtype=float)
-        if q_ref.shape not in ((6,), (len(Ts), 6)) or not np.all(np.isfinite(q_ref)):
+        q_ref = check_configuration(q_current, 6, "q_current")
+        if q_ref.shape not in ((6,), (len(Ts), 6)):
             raise InvalidConfigurationError(
                 f"q_current must be finite with shape (6,) or ({len(Ts)}, 6), got {q_ref.shape}")
     return solver.solve_batch(Ts, q_ref, rows)

@@ -22,7 +22,8 @@ is dimensionless and singular values of mixed joints compare. ``det Js = det J``
 three 1/L), so |det J| and the Yoshikawa manipulability ``sqrt(det(Js Jsᵀ)) = |det Js|`` are scale-free;
 the smallest singular value and the condition number depend on L.
 
-The three singular sets (paper's letters):
+The three singular sets (:class:`~carmkin.model.singular_cases.SingularCase`, valued by the paper's letters;
+eq. 4.7 and the case vocabulary live in :mod:`carmkin.model.singular_cases`):
 
 - ``"a"``: sin γ1 = 0, table axis Z0 ∥ vertical axis Z1 (a property of the setup, not of q);
 - ``"b"``: cos θ4 = 0, orbital axis Z5 ∥ wigwag axis Z2;
@@ -38,48 +39,30 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import NamedTuple
-
 import numpy as np
 import pinocchio as pin
 
 from carmkin.errors import CarmkinError
+from carmkin.model import singular_cases
 from carmkin.model.kinematics import check_configuration
 from carmkin.model.params import JOINT_NAMES, PRISMATIC
+from carmkin.model.singular_cases import SingularCase, SingularFactors
 from carmkin.model.system import CArmSystem
+from carmkin.transforms import wrap_angle
 
 #: Frame whose Jacobian is analysed, and the Pinocchio reference frame (twist at its origin, table axes).
 FRAME = "xray_source"
 REFERENCE_FRAME = pin.LOCAL_WORLD_ALIGNED
-#: The three singular sets of §4.3.2, by the paper's letters.
-CASES = ("a", "b", "c")
-CASE_TITLES = {
-    "a": "table axis Z0 parallel to vertical axis Z1 (sin γ1 = 0)",
-    "b": "orbital axis Z5 parallel to wigwag axis Z2 (cos θ4 = 0)",
-    "c": "horizontal axis Z3 parallel to the table axis's horizontal projection (θ2 = −γ3 mod π)",
-}
+#: The three singular sets of §4.3.2 (:class:`~carmkin.model.singular_cases.SingularCase`, values "a", "b", "c").
+CASES = singular_cases.CASES
+#: The geometric condition of each case, in words.
+CASE_TITLES = {case: case.title for case in CASES}
 #: What is lost in each case, in words (directions named in the table frame; n is the reported axis).
-CASE_LOSSES = {
-    "a": "table translation and vertical move the source along the same line (self-motion ḋ0 = ∓ḋ1); "
-         "with its orientation held, the source cannot translate along n = Z1 × Z3 (horizontal, across "
-         "the C-arm's horizontal arm)",
-    "b": "wigwag and orbital turn the source about parallel axes (self-motion θ̇2 = ±θ̇5 with compensating "
-         "prismatic moves); the source cannot rotate about n = Z2 × Z4 (horizontal, across the arm)",
-    "c": "table translation, vertical and horizontal are coplanar (self-motion of d0, d1, d3 only); with "
-         "its orientation held, the source cannot translate along n = Z0 × Z1 (the common normal X1)",
-}
+CASE_LOSSES = {case: case.loss for case in CASES}
 
 
 class SingularityError(CarmkinError):
     """The request needs what the system does not offer (e.g. a square 6×6 Jacobian)."""
-
-
-class SingularFactors(NamedTuple):
-    """The three factors of eq. 4.7 (dimensionless; arrays broadcast over configurations)."""
-
-    a: np.ndarray  #: sin γ1
-    b: np.ndarray  #: cos θ4
-    c: np.ndarray  #: sin(θ2 + γ3) = sγ3 cθ2 + cγ3 sθ2
 
 
 def _paper_chain(system: CArmSystem, q) -> np.ndarray:
@@ -94,24 +77,21 @@ def _paper_chain(system: CArmSystem, q) -> np.ndarray:
 def singular_factors(system: CArmSystem, q) -> SingularFactors:
     """Factors (sin γ1, cos θ4, sin(θ2 + γ3)) of eq. 4.7 for q (6,) or (N, 6): floats or (N,) arrays."""
     q = _paper_chain(system, q)
-    theta2, theta4 = q[..., 2], q[..., 4]
-    a = np.sin(system.setup.gamma1 + 0.0 * theta2)  # constant of the setup, shaped like the others
-    return SingularFactors(a, np.cos(theta4), np.sin(theta2 + system.setup.gamma3))
+    return singular_cases.factors(system.setup, q[..., 2], q[..., 4])
 
 
 def det_closed_form(system: CArmSystem, q) -> np.ndarray:
     """``det J`` by eq. 4.7 (dimensionless) for q (6,) or (N, 6), in the convention of :func:`jacobian`."""
-    f = singular_factors(system, q)
-    return f.a * f.b * f.c
+    q = _paper_chain(system, q)
+    return singular_cases.det_closed_form(system.setup, q[..., 2], q[..., 4])
 
 
-def singularity_distances(system: CArmSystem, q) -> dict[str, np.ndarray]:
+def singularity_distances(system: CArmSystem, q) -> dict[SingularCase, np.ndarray]:
     """Distance to each singular set (rad): ``asin|factor|``, i.e. how far γ1, θ4 or θ2 is from the set.
 
     Keys are :data:`CASES`; values are floats for q (6,) and (N,) arrays for q (N, 6).
     """
-    factors = singular_factors(system, q)
-    return {case: np.arcsin(np.minimum(np.abs(f), 1.0)) for case, f in zip(CASES, factors)}
+    return singular_cases.distances(singular_factors(system, q))
 
 
 # --- Pinocchio ---------------------------------------------------------------------------------------------
@@ -211,7 +191,7 @@ def _measures(J: np.ndarray, Js: np.ndarray, length: float) -> Measures:
 class CaseReport:
     """One singular set: its factor (eq. 4.7), distance (rad), membership, the lost axis n (table frame)."""
 
-    case: str
+    case: SingularCase
     title: str
     factor: float
     distance: float
@@ -236,7 +216,7 @@ class Classification:
     """
 
     q: np.ndarray
-    cases: dict[str, CaseReport]
+    cases: dict[SingularCase, CaseReport]
     rank: int
     measures: Measures
     joint_null: np.ndarray
@@ -279,14 +259,14 @@ def joint_axes(system: CArmSystem, q) -> np.ndarray:
     return np.vstack(([0.0, 0.0, 1.0], frames[:5, :3, 2]))
 
 
-def lost_axes(system: CArmSystem, q) -> dict[str, np.ndarray]:
+def lost_axes(system: CArmSystem, q) -> dict[SingularCase, np.ndarray]:
     """The axis n of each case's loss (table frame, unit; see :data:`CASE_LOSSES`): Z1×Z3, Z2×Z4, Z0×Z1.
 
     For case (a) the axis n of a translation, (b) of a rotation, (c) of a translation. Where the cross
     product vanishes (e.g. Z0 ∥ Z1 for case c at γ1 = 0) the zero vector is returned.
     """
     z = joint_axes(system, q)
-    pairs = {"a": (1, 3), "b": (2, 4), "c": (0, 1)}
+    pairs = dict(zip(CASES, ((1, 3), (2, 4), (0, 1))))
     out = {}
     for case, (i, j) in pairs.items():
         n = np.cross(z[i], z[j])
@@ -314,8 +294,8 @@ def classify(system: CArmSystem, q, near: float = math.radians(5.0), tol: float 
     distances = singularity_distances(system, q)
     axes = lost_axes(system, q)
     cases = {
-        c: CaseReport(c, CASE_TITLES[c], float(f), float(distances[c]), bool(distances[c] <= tol),
-                      bool(distances[c] <= near), axes[c], CASE_LOSSES[c])
+        c: CaseReport(c, c.title, float(f), float(distances[c]), bool(distances[c] <= tol),
+                      bool(distances[c] <= near), axes[c], c.loss)
         for c, f in zip(CASES, factors)
     }
     L = _check_length(system, length)
@@ -408,61 +388,11 @@ def measure_map(system: CArmSystem, q, pair: tuple[int, int], n: int = 61, measu
 
 def singular_curves(system: CArmSystem, pair: tuple[int, int]) -> list[tuple[str, int, float]]:
     """Singular sets that are lines in a map over ``pair``: ``(case, joint index, value)`` for θ4 = ±π/2
-    (case b) and θ2 = −γ3 + kπ (case c), values wrapped to [−π, π]."""
+    (case b) and θ2 = −γ3 + kπ (case c), values wrapped to (−π, π]."""
     out = []
-    for joint, case, values in ((4, "b", (-math.pi / 2, math.pi / 2)),
-                                (2, "c", (-system.setup.gamma3, math.pi - system.setup.gamma3))):
+    b, c = SingularCase.ORBITAL_PARALLEL_TO_WIGWAG, SingularCase.TABLE_PARALLEL_TO_HORIZONTAL
+    for joint, case, values in ((4, b, (-math.pi / 2, math.pi / 2)),
+                                (2, c, (-system.setup.gamma3, math.pi - system.setup.gamma3))):
         if joint in pair:
-            out += [(case, joint, (v + math.pi) % (2 * math.pi) - math.pi) for v in values]
+            out += [(case, joint, wrap_angle(v)) for v in values]
     return out
-
-
-def plot_maps(system: CArmSystem, q, path, pair: tuple[int, int] = (4, 5), n: int = 61,
-              measure: str = "inverse-condition", length: float | None = None):
-    """Write a PNG with two maps: |det J| over (θ2, θ4) and ``measure`` over ``pair``, singular curves overlaid.
-
-    Axes in degrees (revolute) or mm (prismatic); the joint limits are drawn dashed. Returns the figure.
-    """
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(12, 5), layout="constrained")
-    FigureCanvasAgg(fig)
-    panels = (((2, 4), "det"), (tuple(pair), measure))
-    for ax, (pr, meas) in zip(fig.subplots(1, 2), panels):
-        x, y, values = measure_map(system, q, pr, n, meas, length)
-        scale = [1e3 if PRISMATIC[k] else 180.0 / math.pi for k in pr]
-        mesh = ax.pcolormesh(x * scale[0], y * scale[1], values, shading="auto", cmap="viridis")
-        fig.colorbar(mesh, ax=ax, label="|det J| (eq. 4.7)" if meas == "det" else meas)
-        for case, joint, value in singular_curves(system, pr):
-            style = dict(color="red" if case == "b" else "orange", lw=1.5, label=f"case ({case})")
-            k = pr.index(joint)
-            (ax.axvline if k == 0 else ax.axhline)(value * scale[k], **style)
-        r0, r1 = (system.joint_ranges[k] for k in pr)
-        ax.add_patch(_limits_box(r0, r1, scale))
-        ax.set_xlim(x[0] * scale[0], x[-1] * scale[0])
-        ax.set_ylim(y[0] * scale[1], y[-1] * scale[1])
-        ax.set_xlabel(_axis_label(pr[0]))
-        ax.set_ylabel(_axis_label(pr[1]))
-        handles, labels = ax.get_legend_handles_labels()
-        if handles:
-            unique = dict(zip(labels, handles))
-            ax.legend(unique.values(), unique.keys(), loc="upper right", fontsize=8)
-        title = "|det J|" if meas == "det" else meas
-        ax.set_title(f"{title} over ({JOINT_NAMES[pr[0]]}, {JOINT_NAMES[pr[1]]}); sin γ1 = "
-                     f"{math.sin(system.setup.gamma1):+.3f}", fontsize=10)
-    fig.suptitle(f"{system.name}: singularity maps (other joints at q)")
-    fig.savefig(path, dpi=100)
-    return fig
-
-
-def _axis_label(joint: int) -> str:
-    return f"{JOINT_NAMES[joint]} ({'mm' if PRISMATIC[joint] else 'deg'})"
-
-
-def _limits_box(r0, r1, scale):
-    from matplotlib.patches import Rectangle
-
-    return Rectangle((r0.lower * scale[0], r1.lower * scale[1]), (r0.upper - r0.lower) * scale[0],
-                     (r1.upper - r1.lower) * scale[1], fill=False, ls="--", color="white", lw=1.2,
-                     label="joint limits")

@@ -1,4 +1,7 @@
-"""Homogeneous transforms: DH link matrices (scalar and batched), elementary motions, validation.
+"""Rigid-transform helpers, the one home of them: DH link matrices (scalar and batched), elementary motions,
+inverse, pose error, skew, angle wrapping, the minimal rotation between directions, the segment-vs-box slab
+test, validation (:func:`check_rigid_transform`) and the projection of a nearly rigid matrix onto SE(3)
+(:func:`nearest_rigid`).
 
 All transforms are 4x4 homogeneous matrices mapping coordinates of a child frame into its parent frame;
 lengths in metres, angles in radians.
@@ -6,12 +9,20 @@ lengths in metres, angles in radians.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from carmkin.errors import InvalidPoseError
 
 #: Tolerance of :func:`check_rigid_transform` on ``||R^T R - I||`` and ``|det R - 1|``.
 RIGID_TOLERANCE = 1e-9
+#: Largest ``||R^T R - I||_F`` (and deviation of the last row from [0, 0, 0, 1]) that :func:`nearest_rigid`
+#: accepts as "nearly rigid": a pose typed with 4 decimals has ~2e-4, a float32 pose ~1e-7; beyond 1e-3
+#: (an angle error of ~0.06°) the matrix is more likely wrong than rounded, so it is refused, not projected.
+NEARLY_RIGID_TOLERANCE = 1e-3
+#: Below this |direction component| a segment counts as parallel to a slab in :func:`segment_box_interval`.
+PARALLEL_TOLERANCE = 1e-15
 
 
 def dh_matrix(theta, d, a, alpha) -> np.ndarray:
@@ -107,6 +118,115 @@ def rotation_between(a, b) -> np.ndarray:
         axis = np.cross(a, (0.0, 1.0, 0.0)) if abs(a[1]) < 0.9 else np.cross(a, (1.0, 0.0, 0.0))
         axis /= np.linalg.norm(axis)
         return 2.0 * np.outer(axis, axis) - np.eye(3)
-    k = v / s
-    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    K = skew(v / s)
     return np.eye(3) + s * K + (1.0 - c) * (K @ K)
+
+
+def skew(v) -> np.ndarray:
+    """The cross-product matrix ``[v]x`` (3, 3) of a 3-vector, ``[v]x w = v x w``."""
+    x, y, z = (float(c) for c in np.asarray(v, dtype=float).reshape(3))
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+
+
+def wrap_angle(angle):
+    """Angles (rad) wrapped to (−π, π]; values already there are returned unchanged (so it is idempotent)."""
+    if type(angle) is float:  # the scalar IK path calls this per joint: plain floats, no numpy overhead
+        if -math.pi < angle <= math.pi:
+            return angle
+        wrapped = math.pi - (math.pi - angle) % (2.0 * math.pi)
+        return wrapped + 2.0 * math.pi if wrapped <= -math.pi else wrapped
+    a = np.asarray(angle, dtype=float)
+    wrapped = np.pi - np.mod(np.pi - a, 2.0 * np.pi)
+    wrapped = np.where(wrapped <= -np.pi, wrapped + 2.0 * np.pi, wrapped)  # mod rounding up to 2π
+    out = np.where((a > -np.pi) & (a <= np.pi), a, wrapped)
+    return float(out) if out.ndim == 0 else out
+
+
+def rotation_angle(Ra, Rb):
+    """Angle (rad, in [0, π]) of the rotation ``Raᵀ Rb`` for rotations (..., 3, 3): a float for one pair.
+
+    ``atan2(sin, cos)`` with ``sin`` from the skew part and ``cos`` from the trace, accurate over the whole
+    range (arccos of the trace alone loses half the digits near 0, the chord's arcsin near π).
+    """
+    M = np.swapaxes(np.asarray(Ra, dtype=float), -1, -2) @ np.asarray(Rb, dtype=float)
+    vee = np.stack((M[..., 2, 1] - M[..., 1, 2], M[..., 0, 2] - M[..., 2, 0], M[..., 1, 0] - M[..., 0, 1]), -1)
+    angle = np.arctan2(0.5 * np.linalg.norm(vee, axis=-1), 0.5 * (np.trace(M, axis1=-2, axis2=-1) - 1.0))
+    return float(angle) if angle.ndim == 0 else angle
+
+
+def pose_error(Ta, Tb):
+    """``(position error m, rotation angle rad)`` between poses (..., 4, 4): ``‖pa − pb‖`` and the angle of
+    ``Raᵀ Rb`` (:func:`rotation_angle`). Floats for one pair of (4, 4), arrays (...) for stacks; symmetric."""
+    Ta, Tb = np.asarray(Ta, dtype=float), np.asarray(Tb, dtype=float)
+    dp = np.linalg.norm(Ta[..., :3, 3] - Tb[..., :3, 3], axis=-1)
+    angle = rotation_angle(Ta[..., :3, :3], Tb[..., :3, :3])
+    return (float(dp), angle) if np.ndim(dp) == 0 else (dp, angle)
+
+
+def segment_box_interval(p0, d, center, size, t_min: float = 0.0, t_max: float = 1.0):
+    """``(t_enter, t_exit)`` of the part of ``p0 + t d`` (t in [t_min, t_max]) inside the axis-aligned box of
+    ``center`` and full ``size`` (slab test; same units as the points), or ``None`` when it misses the box.
+
+    ``t_min = -inf``/``t_max = inf`` give the infinite line. A component of ``d`` below
+    :data:`PARALLEL_TOLERANCE` counts as parallel to that slab (inside it or missing the box).
+    """
+    p0, d = np.asarray(p0, dtype=float), np.asarray(d, dtype=float)
+    center, half = np.asarray(center, dtype=float), 0.5 * np.asarray(size, dtype=float)
+    lo, hi = center - half, center + half
+    t0, t1 = t_min, t_max
+    for k in range(3):
+        if abs(d[k]) < PARALLEL_TOLERANCE:
+            if p0[k] < lo[k] or p0[k] > hi[k]:
+                return None
+            continue
+        a, b = (lo[k] - p0[k]) / d[k], (hi[k] - p0[k]) / d[k]
+        t0, t1 = max(t0, min(a, b)), min(t1, max(a, b))
+        if t0 > t1:
+            return None
+    return float(t0), float(t1)
+
+
+def segment_hits_box(p0, p1, center, size) -> bool:
+    """True when the segment p0→p1 meets the axis-aligned box of ``center`` and full ``size`` (slab test)."""
+    p0 = np.asarray(p0, dtype=float)
+    return segment_box_interval(p0, np.asarray(p1, dtype=float) - p0, center, size) is not None
+
+
+def nearest_rigid(T, name: str = "pose"):
+    """The rigid transform nearest to a nearly rigid ``T`` (4, 4) or (N, 4, 4), and how far it moved it.
+
+    The rotation block is replaced by ``U diag(1, 1, det(U Vᵀ)) Vᵀ`` from its SVD ``U S Vᵀ`` (the nearest
+    rotation in the Frobenius norm, det +1), the last row by [0, 0, 0, 1]; the translation is kept.
+    Returns ``(T_rigid, correction)`` with ``correction = ‖T_rigid − T‖_F`` (dimensionless; a float, or (N,)).
+    Raises :class:`InvalidPoseError` naming ``name`` for a bad shape, NaN/Inf, a reflection, or a matrix
+    farther from rigid than :data:`NEARLY_RIGID_TOLERANCE` (``‖RᵀR − I‖_F`` or the last row).
+    """
+    try:
+        T = np.asarray(T)
+        if np.iscomplexobj(T):
+            raise TypeError("complex")
+        T = T.astype(float)
+    except (TypeError, ValueError) as exc:
+        raise InvalidPoseError(f"{name} must be a real numeric 4x4 matrix, got {type(T).__name__}") from exc
+    if T.ndim not in (2, 3) or T.shape[-2:] != (4, 4):
+        raise InvalidPoseError(f"{name} must have shape (4, 4) or (N, 4, 4), got {T.shape}")
+    if not np.all(np.isfinite(T)):
+        raise InvalidPoseError(f"{name} contains NaN or Inf")
+    R = T[..., :3, :3]
+    ortho = np.linalg.norm(np.swapaxes(R, -1, -2) @ R - np.eye(3), axis=(-2, -1))
+    last = np.abs(T[..., 3, :] - (0.0, 0.0, 0.0, 1.0)).max(axis=-1)
+    worst = float(np.maximum(ortho, last).max(initial=0.0))
+    if worst > NEARLY_RIGID_TOLERANCE:
+        raise InvalidPoseError(
+            f"{name} is not nearly rigid: ||R^T R - I|| = {float(ortho.max(initial=0.0)):.3g}, last row off by "
+            f"{float(last.max(initial=0.0)):.3g} (at most {NEARLY_RIGID_TOLERANCE:g} is projected onto a rotation)")
+    if np.any(np.linalg.det(R) <= 0.0):
+        raise InvalidPoseError(f"{name}: rotation block has det <= 0 (a reflection), expected a rotation")
+    U, _, Vt = np.linalg.svd(R)
+    D = np.ones(R.shape[:-1])
+    D[..., 2] = np.sign(np.linalg.det(U @ Vt))
+    out = T.copy()
+    out[..., :3, :3] = (U * D[..., None, :]) @ Vt
+    out[..., 3, :] = (0.0, 0.0, 0.0, 1.0)
+    correction = np.linalg.norm(out - T, axis=(-2, -1))
+    return out, (float(correction) if correction.ndim == 0 else correction)

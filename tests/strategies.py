@@ -1,5 +1,6 @@
 """Hypothesis strategies shared by the tests: random C-arm geometries (non-isocentric), table setups,
-systems and configurations (SI units)."""
+motorized tables (random extra table joints, axes, pivots, ranges), systems and configurations for any
+number of joints (SI units)."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ from hypothesis import assume
 from hypothesis import strategies as st
 
 import carmkin
-from carmkin.model.params import PRISMATIC
+from carmkin.model.table_joints import CHAIN_ORDER, TableJoint
 
 PRESET = carmkin.load_preset("siremobile-iso-c3d")
 
@@ -76,12 +77,62 @@ def systems(draw, isocentric: bool = False) -> carmkin.CArmSystem:
 
 
 @st.composite
+def unit_vectors(draw) -> np.ndarray:
+    """Unit 3-vectors (direction roughly uniform)."""
+    v = np.array([draw(st.floats(-1, 1, **finite)) for _ in range(3)])
+    n = float(np.linalg.norm(v))
+    assume(n > 1e-2)
+    return v / n
+
+
+@st.composite
+def table_joints(draw, min_joints: int = 0, max_joints: int = 5) -> tuple[TableJoint, ...]:
+    """Extra joints of a motorized table, ordered from the top down: a random subset of the names of
+    :data:`~carmkin.model.table_joints.CHAIN_ORDER`, each prismatic or revolute about a random unit axis
+    through a random pivot (±0.5 m, frame 0), with a range containing 0 (up to ±0.3 m or ±0.6 rad)."""
+    names = draw(st.lists(st.sampled_from(CHAIN_ORDER), unique=True, min_size=min_joints, max_size=max_joints))
+    joints = []
+    for name in (n for n in CHAIN_ORDER if n in names):  # from the floor up
+        prismatic = draw(st.booleans())
+        reach = 0.3 if prismatic else 0.6
+        span = carmkin.JointRange(-draw(st.floats(0.0, reach, **finite)), draw(st.floats(0.0, reach, **finite)), name)
+        point = tuple(draw(st.floats(-0.5, 0.5, **finite)) for _ in range(3))
+        joints.append(TableJoint(name, prismatic, tuple(draw(unit_vectors())), point, span))
+    return tuple(reversed(joints))
+
+
+@st.composite
+def motorized_systems(draw, min_joints: int = 0, max_joints: int = 5, isocentric: bool = False) -> carmkin.CArmSystem:
+    """:func:`systems` with 0–5 random extra table joints (:func:`table_joints`): nq from 6 to 11."""
+    from dataclasses import replace
+
+    system = draw(systems(isocentric))
+    return system.replace(table=replace(system.table, joints=draw(table_joints(min_joints, max_joints))))
+
+
+@st.composite
 def configurations(draw, system: carmkin.CArmSystem | None = None, beyond: float = 0.0) -> np.ndarray:
-    """Joint vectors (6,) inside the ranges of ``system`` (default: the preset), widened by ``beyond`` of
-    each span on both sides."""
+    """Joint vectors (nq,) inside the ranges of ``system`` (default: the preset), widened by ``beyond`` of
+    each span on both sides; any number of joints."""
     system = system or PRESET
     q = []
-    for joint_range, prismatic in zip(system.joint_ranges, PRISMATIC):
+    for joint_range in system.joint_ranges:
         span = joint_range.upper - joint_range.lower
         q.append(draw(st.floats(joint_range.lower - beyond * span, joint_range.upper + beyond * span, **finite)))
+    return np.array(q)
+
+
+@st.composite
+def configurations_on_limits(draw, system: carmkin.CArmSystem | None = None) -> np.ndarray:
+    """Joint vectors (nq,) in range with every joint exactly on its lower or upper limit or at a value
+    inside, and at least one joint on a limit (issue 13: a value on a limit is in range)."""
+    system = system or PRESET
+    q = []
+    for r in system.joint_ranges:
+        q.append(draw(st.sampled_from((r.lower, r.upper)) | st.floats(r.lower, r.upper, **finite)))
+    on_limit = [v in (r.lower, r.upper) for v, r in zip(q, system.joint_ranges)]
+    if not any(on_limit):
+        k = draw(st.integers(0, system.nq - 1))
+        r = system.joint_ranges[k]
+        q[k] = draw(st.sampled_from((r.lower, r.upper)))
     return np.array(q)

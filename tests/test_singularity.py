@@ -102,17 +102,22 @@ def regular_in_other_cases(system, q, case, margin=0.05):
     return all(d[c] > margin for c in sing.CASES if c != case)
 
 
+def singular_in(case, system, q):
+    """Pinocchio's J (rank 5 checked), its joint axes and the classification, which names ``case`` alone."""
+    assume(regular_in_other_cases(system, q, case))
+    J = pinocchio_jacobian(system, q)
+    assert svd_rank(J) == 5
+    report = sing.classify(system, q)
+    assert report.singular_cases == (case,) and report.rank == 5
+    return J, axes_from_pinocchio(system, q), report
+
+
 @settings(max_examples=40)
 @given(case_a_systems(), st.data())
 def test_case_a_table_parallel_to_vertical(system, data):
     q = data.draw(configurations(system, beyond=0.5))
-    assume(regular_in_other_cases(system, q, "a"))
-    J = pinocchio_jacobian(system, q)
-    assert svd_rank(J) == 5
-    z = axes_from_pinocchio(system, q)
+    J, z, report = singular_in("a", system, q)
     assert parallel(z[0], z[1])
-    report = sing.classify(system, q)
-    assert report.singular_cases == ("a",) and report.rank == 5
     # d0 and d1 drive the same line: the self-motion is ḋ0 = -(z0·z1) ḋ1, nothing else moves.
     expected = np.array([1.0, -np.dot(z[0], z[1]), 0, 0, 0, 0]) / math.sqrt(2)
     assert np.allclose(np.abs(report.joint_null), np.abs(expected), atol=1e-7)
@@ -129,13 +134,8 @@ def test_case_a_table_parallel_to_vertical(system, data):
 def test_case_b_orbital_parallel_to_wigwag(system, data, theta4):
     q = data.draw(configurations(system))
     q[4] = theta4
-    assume(regular_in_other_cases(system, q, "b"))
-    J = pinocchio_jacobian(system, q)
-    assert svd_rank(J) == 5
-    z = axes_from_pinocchio(system, q)
+    J, z, report = singular_in("b", system, q)
     assert parallel(z[5], z[2])
-    report = sing.classify(system, q)
-    assert report.singular_cases == ("b",) and report.rank == 5
     v = report.joint_null
     assert np.linalg.norm(J @ v) <= 1e-9
     assert abs(v[4]) <= 1e-7 and abs(abs(v[2]) - abs(v[5])) <= 1e-7 and abs(v[2]) > 1e-3  # θ̇2 = ±θ̇5
@@ -150,13 +150,8 @@ def test_case_b_orbital_parallel_to_wigwag(system, data, theta4):
 def test_case_c_horizontal_parallel_to_table_projection(system, data, k_pi):
     q = data.draw(configurations(system))
     q[2] = -system.setup.gamma3 + k_pi
-    assume(regular_in_other_cases(system, q, "c"))
-    J = pinocchio_jacobian(system, q)
-    assert svd_rank(J) == 5
-    z = axes_from_pinocchio(system, q)
+    J, z, report = singular_in("c", system, q)
     assert abs(np.dot(np.cross(z[0], z[1]), z[3])) <= 1e-9  # the three prismatic axes are coplanar
-    report = sing.classify(system, q)
-    assert report.singular_cases == ("c",) and report.rank == 5
     v = report.joint_null
     assert np.linalg.norm(J @ v) <= 1e-9
     assert np.abs(v[[2, 4, 5]]).max() <= 1e-7  # only d0, d1, d3 move

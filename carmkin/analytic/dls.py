@@ -13,14 +13,14 @@ Joint limits are not enforced here (callers check ranges and never clip silently
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
 
 from carmkin.errors import CarmkinError
-from carmkin.transforms import check_rigid_transform
+from carmkin.model.per_system import per_system
+from carmkin.transforms import check_rigid_transform, pose_error
 
 #: Default convergence threshold on the pose residual (m and rad).
 TOLERANCE = 1e-9
@@ -44,16 +44,6 @@ class DLSResult:
     angle_error: float
     iterations: int
     success: bool
-
-
-def pose_error(T: np.ndarray, T_target: np.ndarray) -> tuple[float, float]:
-    """``(‖p − p*‖ in m, rotation angle of Rᵀ R* in rad)`` between two 4x4 poses."""
-    dp = float(np.linalg.norm(T[:3, 3] - T_target[:3, 3]))
-    M = T[:3, :3].T @ T_target[:3, :3]
-    # atan2(sin, cos) of the angle: arccos of the trace alone is ill-conditioned near 0
-    cos = (float(np.trace(M)) - 1.0) / 2.0
-    sin = 0.5 * math.sqrt((M[2, 1] - M[1, 2]) ** 2 + (M[0, 2] - M[2, 0]) ** 2 + (M[1, 0] - M[0, 1]) ** 2)
-    return dp, math.atan2(sin, cos)
 
 
 class DampedLeastSquares:
@@ -110,13 +100,11 @@ class DampedLeastSquares:
         return DLSResult(q, residual, dp, angle, iterations, residual <= self.tolerance)
 
 
+@per_system
 def solver_for(system) -> DampedLeastSquares:
-    """The :class:`DampedLeastSquares` of ``system``'s ``xray_source``, cached on the system object."""
-    cache = vars(system)
-    solver = cache.get("_numerical_ik_solver")
-    if solver is None:
-        solver = cache["_numerical_ik_solver"] = DampedLeastSquares(system.pinocchio()[0])
-    return solver
+    """The :class:`DampedLeastSquares` of ``system``'s ``xray_source``, built once per system object
+    (:func:`carmkin.model.per_system.per_system`; nothing is written into the frozen system)."""
+    return DampedLeastSquares(system.pinocchio()[0])
 
 
 def solve(system, T, q0) -> DLSResult:

@@ -46,7 +46,8 @@ import numpy as np
 
 from carmkin.errors import CarmkinError
 from carmkin.model.kinematics import ClosedFormFK
-from carmkin.model.params import CArmGeometry, TableSetup
+from carmkin.model.params import PRISMATIC, CArmGeometry, TableSetup
+from carmkin.transforms import wrap_angle
 
 #: Targets with ``hypot(U_x, z_z)`` below this are treated as the cos θ5 = 0 singularity.
 SINGULAR = 1e-12
@@ -141,18 +142,13 @@ def residual(carm: CArmGeometry, q: np.ndarray, p: np.ndarray, z: np.ndarray) ->
     return out.reshape(shape)
 
 
-def _wrap(angle: np.ndarray) -> np.ndarray:
-    """Angles wrapped to (−π, π]."""
-    return np.pi - np.mod(np.pi - angle, 2.0 * np.pi)
-
-
 def complete(carm: CArmGeometry, p: np.ndarray, z: np.ndarray, theta2: np.ndarray, sigma) -> np.ndarray:
     """Joint values (..., 5) for wigwag angles θ2 (...) and cos θ5 signs σ (±1), targets broadcast to (..., 3).
 
     Exact when θ2 solves ``f_σ(θ2) = 0`` (module docstring); otherwise the result misses the target and
     FK verification rejects it.
     """
-    L, M, a1, a2 = carm.orbital_offset + carm.a1, carm.length_offset - carm.a2, carm.a1, carm.a2
+    L, M, a1, a2 = carm.source_to_orbital_axis, carm.arm_length, carm.a1, carm.a2
     c2, s2 = np.cos(theta2), np.sin(theta2)
     Px = c2 * p[..., 0] + s2 * p[..., 1]
     Py = -s2 * p[..., 0] + c2 * p[..., 1]
@@ -174,7 +170,7 @@ def complete(carm: CArmGeometry, p: np.ndarray, z: np.ndarray, theta2: np.ndarra
     theta4 = np.where(singular, theta4_sing, np.arctan2(sigma * Ux, sigma * zz))
     d1 = p[..., 2] - np.cos(theta4) * g
     d3 = Py - M + L * s5 - a2 * c5
-    return np.stack((d1, _wrap(theta2), d3, _wrap(theta4), theta5), axis=-1)
+    return np.stack((d1, wrap_angle(theta2), d3, wrap_angle(theta4), theta5), axis=-1)
 
 
 def isocentric_branches(carm: CArmGeometry, p: np.ndarray, z: np.ndarray) -> np.ndarray:
@@ -192,7 +188,7 @@ def isocentric_branches(carm: CArmGeometry, p: np.ndarray, z: np.ndarray) -> np.
 
 def _linear_forms(carm: CArmGeometry, p: np.ndarray, z: np.ndarray) -> dict[str, tuple[np.ndarray, ...]]:
     """Coefficients (a, b, e) (each (N,)) of ``a cos θ2 + b sin θ2 + e`` for A, B = U_x and C."""
-    L, a1, a2 = carm.orbital_offset + carm.a1, carm.a1, carm.a2
+    L, a1, a2 = carm.source_to_orbital_axis, carm.a1, carm.a2
     zero = np.zeros(len(p))
     return {
         "A": (p[:, 0] + L * z[:, 0], p[:, 1] + L * z[:, 1], zero),
@@ -296,7 +292,7 @@ def general_branches(carm: CArmGeometry, p: np.ndarray, z: np.ndarray) -> tuple[
 
 def _drop_duplicates(q: np.ndarray, valid: np.ndarray, tol: float = 1e-7) -> np.ndarray:
     diff = q[:, :, None, :] - q[:, None, :, :]
-    diff[..., (1, 3, 4)] = _wrap(diff[..., (1, 3, 4)])
+    diff[..., (1, 3, 4)] = wrap_angle(diff[..., (1, 3, 4)])
     same = np.all(np.abs(diff) <= tol, axis=-1) & valid[:, :, None] & valid[:, None, :]
     earlier = np.triu(np.ones(same.shape[1:], dtype=bool), k=1)  # same[:, i, j] for i < j
     return valid & ~np.any(same & earlier[None], axis=1)
@@ -309,7 +305,7 @@ def range_excess(carm: CArmGeometry, q: np.ndarray) -> np.ndarray:
     such representative. The orbital joint is therefore never "wrapped" into range: ±95° spans less than a turn.
     """
     out = np.empty(q.shape)
-    for i, (rng, revolute) in enumerate(zip(carm.joint_ranges, (False, True, False, True, True))):
+    for i, (rng, revolute) in enumerate(zip(carm.joint_ranges, (not p for p in PRISMATIC[1:]))):
         value = q[..., i]
         if revolute:
             candidates = value[..., None] + 2.0 * np.pi * np.array([-1.0, 0.0, 1.0])
@@ -322,7 +318,7 @@ def range_excess(carm: CArmGeometry, q: np.ndarray) -> np.ndarray:
 
 def select(carm: CArmGeometry, q: np.ndarray, valid: np.ndarray) -> np.ndarray:
     """Index (N,) of the chosen branch per the module's selection rule; −1 when none is valid."""
-    M = carm.length_offset - carm.a2
+    M = carm.arm_length
     lower = np.array([r.lower for r in carm.joint_ranges])
     upper = np.array([r.upper for r in carm.joint_ranges])
     width = np.maximum(upper - lower, 1e-12)

@@ -103,6 +103,8 @@ def run(args: argparse.Namespace) -> int:
               f"{'PASS' if ok else 'FAIL'}")
         status = 0 if ok else 1
     if plot is not None:
-        sing.plot_maps(system, q, plot, pair=pair, n=args.grid, measure=args.measure, length=length)
+        from carmkin import plots
+
+        plots.singularity_maps(system, q, plot, pair=pair, n=args.grid, measure=args.measure, length=length)
         print(f"wrote {plot}")
     return status

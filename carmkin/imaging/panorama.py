@@ -28,7 +28,7 @@ from scipy.optimize import brentq
 from carmkin import imaging
 from carmkin.errors import CarmkinError, InvalidConfigurationError
 from carmkin.robot.collision import CollisionScene, Obstacle
-from carmkin.transforms import check_rigid_transform
+from carmkin.transforms import check_rigid_transform, pose_error, segment_box_interval
 
 
 class PanoramaError(CarmkinError):
@@ -84,11 +84,8 @@ class Shot:
 
 
 def pose_residual(T, T_target) -> float:
-    """max(position error (m), rotation angle (rad)) between two poses."""
-    dp = np.linalg.norm(T[:3, 3] - T_target[:3, 3])
-    E = T_target[:3, :3].T @ T[:3, :3]
-    sin = 0.5 * np.linalg.norm([E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1]])
-    return float(max(dp, np.arctan2(sin, 0.5 * (np.trace(E) - 1.0))))
+    """max(position error (m), rotation angle (rad)) between two poses (:func:`carmkin.transforms.pose_error`)."""
+    return max(pose_error(T, T_target))
 
 
 def _category(report) -> str:
@@ -214,21 +211,11 @@ class PanoramaPlanner:
         Falls back to half the source-to-detector distance when the axis misses the table top.
         """
         table = self.system.table
-        lo = np.asarray(table.top_center) - 0.5 * np.asarray(table.top_size)
-        hi = np.asarray(table.top_center) + 0.5 * np.asarray(table.top_size)
-        p, z = self.P_ref[:3, 3], self.P_ref[:3, 2]
-        t_exit = np.inf
-        t_enter = -np.inf
-        for k in range(3):
-            if abs(z[k]) < 1e-15:
-                if not lo[k] <= p[k] <= hi[k]:
-                    return 0.5 * self.system.carm.source_to_detector
-                continue
-            a, b = (lo[k] - p[k]) / z[k], (hi[k] - p[k]) / z[k]
-            t_enter, t_exit = max(t_enter, min(a, b)), min(t_exit, max(a, b))
-        if t_enter > t_exit or t_exit <= 0:
+        hit = segment_box_interval(self.P_ref[:3, 3], self.P_ref[:3, 2], table.top_center, table.top_size,
+                                   -np.inf, np.inf)
+        if hit is None or hit[1] <= 0:
             return 0.5 * self.system.carm.source_to_detector
-        return float(t_exit)
+        return hit[1]
 
     def extent(self, s: float, direction, distance: float) -> tuple[float, float]:
         """Interval of the line ``X(σ) = distance·e_z + σ·direction`` (reference frame, m) that the shot
@@ -352,28 +339,7 @@ class Plan:
 
 
 def plot_validity_map(planner: PanoramaPlanner, us, vs, categories: np.ndarray, path=None, shots=()):
-    """Matplotlib figure of a validity map (categories from :meth:`PanoramaPlanner.validity_map`), the
-    reference image border and the outlines of ``shots``; saved to ``path`` when given."""
-    import matplotlib.pyplot as plt
-    from matplotlib.colors import ListedColormap
-    from matplotlib.patches import Patch
+    """The validity-map figure; drawn by :func:`carmkin.plots.panorama_validity_map`."""
+    from carmkin import plots
 
-    colors = ["#4caf50", "#ff9800", "#e53935", "#9e9e9e", "#212121"]
-    fig, ax = plt.subplots(figsize=(7, 5))
-    du, dv = (us[1] - us[0]) if len(us) > 1 else 1.0, (vs[1] - vs[0]) if len(vs) > 1 else 1.0
-    ax.imshow(categories, cmap=ListedColormap(colors), vmin=-0.5, vmax=len(CATEGORIES) - 0.5, origin="upper",
-              extent=(us[0] - du / 2, us[-1] + du / 2, vs[-1] + dv / 2, vs[0] - dv / 2), interpolation="nearest")
-    border = imaging.image_border(*planner.size)
-    ax.plot(border[:, 0], border[:, 1], "b-", lw=1.5, label="reference image")
-    for k, shot in enumerate(shots):
-        ax.plot(shot.outline[:, 0], shot.outline[:, 1], "w--", lw=1)
-        ax.plot(*shot.principal_point, "w+")
-    ax.set_xlabel("u (px, panorama frame)")
-    ax.set_ylabel("v (px)")
-    ax.set_title("validity of principal points (§4.4.3)")
-    ax.legend(handles=[Patch(color=c, label=n) for c, n in zip(colors, CATEGORIES)], loc="upper left",
-              bbox_to_anchor=(1.01, 1.0), fontsize=7)
-    ax.set_aspect("equal")
-    if path is not None:
-        fig.savefig(path, dpi=110, bbox_inches="tight")
-    return fig
+    return plots.panorama_validity_map(planner, us, vs, categories, CATEGORIES, path, shots)

@@ -26,10 +26,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from carmkin.errors import InvalidConfigurationError
+from carmkin.errors import InvalidConfigurationError, InvalidParameterError
 from carmkin.transforms import dh_matrix, rot_x, rot_y, translation
 
-from .params import JOINT_NAMES, PRISMATIC, CArmGeometry, TableSetup
+from .params import CARM_JOINT_NAMES, JOINT_NAMES, PRISMATIC, CArmGeometry, TableSetup
 
 
 class DHRow(NamedTuple):
@@ -45,15 +45,14 @@ class DHRow(NamedTuple):
 
 def carm_rows(carm: CArmGeometry) -> tuple[DHRow, ...]:
     """DH rows of the 5-DOF C-arm alone, from its base frame (vertical axis, vertical joint at zero)."""
-    l1, l2, a1, a2 = carm.length_offset, carm.orbital_offset, carm.a1, carm.a2
     constants = (
         (0.0, 0.0, 0.0, 0.0),
         (0.0, 0.0, 0.0, -math.pi / 2),
-        (0.0, l1 - a2, 0.0, 0.0),
-        (-math.pi / 2, 0.0, a1, math.pi / 2),
-        (0.0, 0.0, -(l2 + a1), 0.0),
+        (0.0, carm.arm_length, 0.0, 0.0),
+        (-math.pi / 2, 0.0, carm.a1, math.pi / 2),
+        (0.0, 0.0, -carm.source_to_orbital_axis, 0.0),
     )
-    return tuple(DHRow(name, prism, *row) for name, prism, row in zip(JOINT_NAMES[1:], PRISMATIC[1:], constants))
+    return tuple(DHRow(name, prism, *row) for name, prism, row in zip(CARM_JOINT_NAMES, PRISMATIC[1:], constants))
 
 
 def dh_table(carm: CArmGeometry, setup: TableSetup) -> tuple[DHRow, ...]:
@@ -68,8 +67,39 @@ def xray_in_flange(carm: CArmGeometry) -> np.ndarray:
     return translation(y=carm.a2) @ rot_x(math.pi) @ rot_y(math.pi / 2)
 
 
+#: Tolerance (dimensionless) on the unit length and orthogonality of the axes given to
+#: :func:`table_pose_from_xray`.
+AXIS_TOLERANCE = 1e-9
+
+
+def table_pose_from_xray(carm: CArmGeometry, origin, x_axis, z_axis) -> np.ndarray:
+    """Table pose (4, 4) in the C-arm base frame from its pose in the X-ray source frame at zero joints (eq. 4.3).
+
+    ``origin`` (m), ``x_axis`` and ``z_axis`` are the table frame's origin and X0/Z0 axes expressed in the
+    source frame; the axes must be orthonormal (to :data:`AXIS_TOLERANCE`), else
+    :class:`~carmkin.errors.InvalidParameterError`. Feed the result to :meth:`TableSetup.from_pose`.
+    """
+    x_axis, z_axis = np.asarray(x_axis, float), np.asarray(z_axis, float)
+    tol = AXIS_TOLERANCE
+    if abs(np.linalg.norm(x_axis) - 1) > tol or abs(np.linalg.norm(z_axis) - 1) > tol or abs(x_axis @ z_axis) > tol:
+        raise InvalidParameterError(
+            "setup: table_x_axis_in_xray and table_z_axis_in_xray (x_axis, z_axis) must be orthonormal, got "
+            f"{x_axis.tolist()} and {z_axis.tolist()}")
+    T_xray_table = np.eye(4)
+    T_xray_table[:3, :3] = np.column_stack((x_axis, np.cross(z_axis, x_axis), z_axis))
+    T_xray_table[:3, 3] = origin
+    T_base_xray = forward(carm_rows(carm), xray_in_flange(carm), np.zeros(5))
+    return T_base_xray @ T_xray_table
+
+
 def check_configuration(q, n_joints: int = 6, name: str = "q") -> np.ndarray:
-    """Return ``q`` as a float array of shape (n,) or (N, n); raise a typed error otherwise."""
+    """Return ``q`` as a float array of shape (n,) or (N, n); raise a typed error otherwise.
+
+    The one joint-vector check of the library: :class:`~carmkin.errors.InvalidConfigurationError` naming
+    ``name`` for a non-numeric or complex value, a wrong shape, NaN or Inf.
+    """
+    if np.iscomplexobj(q):
+        raise InvalidConfigurationError(f"{name} must be real, got complex values")
     try:
         q = np.asarray(q, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -122,8 +152,8 @@ class ClosedFormFK:
         )
         self.R = K[:3, :3].copy()
         self.p = K[:3, 3].copy()
-        self.L = carm.orbital_offset + carm.a1
-        self.M = carm.length_offset - carm.a2
+        self.L = carm.source_to_orbital_axis
+        self.M = carm.arm_length
         self.a1, self.a2 = carm.a1, carm.a2
         self._R_rows = tuple(tuple(float(v) for v in r) for r in self.R)
         self._p = tuple(float(v) for v in self.p)

@@ -31,6 +31,13 @@ from .bounds import (
 JOINT_NAMES = ("table_translation", "vertical", "wigwag", "horizontal", "angular", "orbital")
 #: ``True`` where the joint of :data:`JOINT_NAMES` is prismatic (m), ``False`` where revolute (rad).
 PRISMATIC = (True, True, False, True, False, False)
+#: The five joints of the C-arm itself (all but the table translation), in the order of q.
+CARM_JOINT_NAMES = JOINT_NAMES[1:]
+#: A joint value counts as within its range when it lies no more than this beyond a limit (m for prismatic,
+#: rad for revolute joints): a value on a limit is in range, even after the round-off of an FK → IK round
+#: trip (~1e-16 m / rad for poses within a few metres). 1e-9 m and 1e-9 rad are far below any C-arm's
+#: positioning accuracy. Used by :meth:`JointRange.excess`, :meth:`JointRange.contains` and every range check.
+JOINT_RANGE_TOLERANCE = 1e-9
 
 
 @dataclass(frozen=True)
@@ -53,9 +60,18 @@ class JointRange:
         object.__setattr__(self, "upper", upper)
 
     def excess(self, value):
-        """Signed distance outside the range: < 0 below ``lower``, > 0 above ``upper``, 0 inside."""
+        """Signed distance outside the range: < 0 below ``lower``, > 0 above ``upper``, 0 inside.
+
+        Values within :data:`JOINT_RANGE_TOLERANCE` of the range count as inside (excess 0).
+        """
         value = np.asarray(value, dtype=float)
-        return np.where(value < self.lower, value - self.lower, np.where(value > self.upper, value - self.upper, 0.0))
+        lo, hi = self.lower - JOINT_RANGE_TOLERANCE, self.upper + JOINT_RANGE_TOLERANCE
+        return np.where(value < lo, value - self.lower, np.where(value > hi, value - self.upper, 0.0))
+
+    def contains(self, value):
+        """True where ``value`` is within the range, up to :data:`JOINT_RANGE_TOLERANCE` (NaN is not)."""
+        value = np.asarray(value, dtype=float)
+        return (value >= self.lower - JOINT_RANGE_TOLERANCE) & (value <= self.upper + JOINT_RANGE_TOLERANCE)
 
 
 @dataclass(frozen=True)
@@ -114,6 +130,17 @@ class CArmGeometry:
     def is_isocentric(self) -> bool:
         """True when both geometric offsets a1 and a2 are zero."""
         return self.a1 == 0.0 and self.a2 == 0.0
+
+    @property
+    def source_to_orbital_axis(self) -> float:
+        """L = l2 + a1 (m): distance along the principal axis from the source to the orbital axis's foot
+        (the ``-(l2 + a1)`` of DH row 5; the C radius of the URDF)."""
+        return self.orbital_offset + self.a1
+
+    @property
+    def arm_length(self) -> float:
+        """M = l1 − a2 (m): length of the horizontal arm at d3 = 0 (the ``l1 − a2`` of DH row 3)."""
+        return self.length_offset - self.a2
 
     @property
     def joint_ranges(self) -> tuple[JointRange, ...]:

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from carmkin.errors import InvalidParameterError
+from carmkin.transforms import skew
 
 from .params import JointRange
 
@@ -67,7 +68,7 @@ class TableJoint:
         if self.prismatic:
             out[:3, 3] = -value * u
             return out
-        K = np.array([[0, -u[2], u[1]], [u[2], 0, -u[0]], [-u[1], u[0], 0]])
+        K = skew(u)
         R = np.eye(3) - math.sin(value) * K + (1 - math.cos(value)) * K @ K  # rotation by -value about u
         out[:3, :3] = R
         out[:3, 3] = c - R @ c

@@ -231,25 +231,9 @@ def _carm(section: dict) -> CArmGeometry:
     )
 
 
-def table_pose_from_xray(carm: CArmGeometry, origin, x_axis, z_axis) -> np.ndarray:
-    """Table pose in the C-arm base frame from its pose in the X-ray source frame at zero joints (eq. 4.3).
-
-    ``origin`` (m), ``x_axis`` and ``z_axis`` are the table frame's origin and X0/Z0 axes expressed in the
-    source frame; they must be orthonormal.
-    """
-    x_axis, z_axis = np.asarray(x_axis, float), np.asarray(z_axis, float)
-    if abs(np.linalg.norm(x_axis) - 1) > 1e-9 or abs(np.linalg.norm(z_axis) - 1) > 1e-9 or abs(x_axis @ z_axis) > 1e-9:
-        raise InvalidParameterError("setup: table_x_axis_in_xray and table_z_axis_in_xray must be orthonormal")
-    T_xray_table = np.eye(4)
-    T_xray_table[:3, :3] = np.column_stack((x_axis, np.cross(z_axis, x_axis), z_axis))
-    T_xray_table[:3, 3] = origin
-    T_base_xray = kinematics.forward(kinematics.carm_rows(carm), kinematics.xray_in_flange(carm), np.zeros(5))
-    return T_base_xray @ T_xray_table
-
-
 def _setup(section: dict, carm: CArmGeometry) -> TableSetup:
     if "table_origin_in_xray_mm" in section:
-        T = table_pose_from_xray(
+        T = kinematics.table_pose_from_xray(
             carm,
             np.asarray(section["table_origin_in_xray_mm"], float) * _MM,
             section.get("table_x_axis_in_xray", (1.0, 0.0, 0.0)),

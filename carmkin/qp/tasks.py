@@ -15,15 +15,11 @@ import numpy as np
 import pinocchio as pin
 
 from carmkin.errors import CarmkinError
-from carmkin.transforms import check_rigid_transform
+from carmkin.transforms import check_rigid_transform, skew
 
 
 class TaskError(CarmkinError):
     """A task is ill-defined (unknown frame, zero direction, empty distance range, bad weight)."""
-
-
-def _skew(v: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
 def _unit(v, name: str) -> np.ndarray:
@@ -131,7 +127,7 @@ class AxisTask(FrameTask):
         oMf = data.oMf[self.frame_id]
         a = oMf.rotation[:, self.axis]
         J6 = pin.getFrameJacobian(model, data, self.frame_id, pin.LOCAL_WORLD_ALIGNED)
-        J = np.vstack((J6[:3], -_skew(a) @ J6[3:]))
+        J = np.vstack((J6[:3], -skew(a) @ J6[3:]))
         return J, np.concatenate((oMf.translation - self.position, a - self.direction))
 
     def errors(self, data, position_tolerance, angle_tolerance):
@@ -174,7 +170,7 @@ class AimTask(FrameTask):
         a = oMf.rotation[:, self.axis]
         w = self.point - oMf.translation
         J6 = pin.getFrameJacobian(model, data, self.frame_id, pin.LOCAL_WORLD_ALIGNED)
-        Ja = -_skew(a) @ J6[3:]  # d(axis)/dq
+        Ja = -skew(a) @ J6[3:]  # d(axis)/dq
         return a, w, J6[:3], Ja
 
     def residual(self, model, data):

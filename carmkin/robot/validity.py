@@ -17,6 +17,7 @@ from typing import Sequence
 import numpy as np
 
 from carmkin.errors import InvalidConfigurationError
+from carmkin.transforms import segment_hits_box
 
 from .collision import CollisionScene, Obstacle, link_of
 from .state import KinematicState
@@ -96,24 +97,6 @@ class ValidityReport:
 
     def __str__(self) -> str:
         return "valid" if self.valid else "; ".join(self.reasons)
-
-
-def segment_hits_box(p0: np.ndarray, p1: np.ndarray, center, size) -> bool:
-    """True when the segment p0→p1 meets the axis-aligned box of ``center`` and full ``size`` (slab test)."""
-    center, half = np.asarray(center, float), 0.5 * np.asarray(size, float)
-    lo, hi = center - half, center + half
-    d = p1 - p0
-    t0, t1 = 0.0, 1.0
-    for k in range(3):
-        if abs(d[k]) < 1e-15:
-            if p0[k] < lo[k] or p0[k] > hi[k]:
-                return False
-            continue
-        a, b = (lo[k] - p0[k]) / d[k], (hi[k] - p0[k]) / d[k]
-        t0, t1 = max(t0, min(a, b)), min(t1, max(a, b))
-        if t0 > t1:
-            return False
-    return True
 
 
 def pose_in_cone(system, T) -> bool:

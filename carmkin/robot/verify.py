@@ -13,15 +13,10 @@ import pinocchio as pin
 
 from carmkin.model.sampling import random_configurations, random_system
 from carmkin.model.system import CArmSystem
+from carmkin.transforms import rotation_angle
 
 #: Frames compared: the DH frames 1..6 and the imaging frames.
 FRAMES = tuple(f"dh_frame_{i}" for i in range(1, 7)) + ("xray_source", "detector")
-
-
-def rotation_angle_between(Ra: np.ndarray, Rb: np.ndarray) -> np.ndarray:
-    """Angle (rad) of ``Ra^T Rb`` for stacks (..., 3, 3), accurate near 0: ``2 asin(||Ra - Rb||_F / sqrt 8)``."""
-    chord = np.linalg.norm(Ra - Rb, axis=(-2, -1)) / np.sqrt(8.0)
-    return 2.0 * np.arcsin(np.clip(chord, 0.0, 1.0))
 
 
 @dataclass
@@ -68,7 +63,7 @@ def compare(system: CArmSystem, q: np.ndarray, report: VerifyReport) -> None:
     """Add the errors of ``system`` over configurations ``q`` (N, 6) to ``report``."""
     a, b = closed_form_frames(system, q), pinocchio_frames(system, q)
     position = np.linalg.norm(a[..., :3, 3] - b[..., :3, 3], axis=-1).max(axis=0)
-    rotation = rotation_angle_between(a[..., :3, :3], b[..., :3, :3]).max(axis=0)
+    rotation = rotation_angle(a[..., :3, :3], b[..., :3, :3]).max(axis=0)
     for j, frame in enumerate(FRAMES):
         report.update(frame, float(position[j]), float(rotation[j]))
     report.samples += len(q)

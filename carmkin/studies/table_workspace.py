@@ -26,6 +26,7 @@ import numpy as np
 
 from carmkin.analytic import five_dof
 from carmkin.errors import CarmkinError
+from carmkin.model.params import CARM_JOINT_NAMES
 from carmkin.model.system import CArmSystem
 from carmkin.qp_ik import AxisTarget, QPIKOptions, make_task, solve
 from carmkin.robot import validity
@@ -33,7 +34,7 @@ from carmkin.robot.collision import CollisionScene
 from carmkin.robot.state import KinematicState
 from carmkin.transforms import inverse
 
-CARM = ("vertical", "wigwag", "horizontal", "angular", "orbital")
+CARM = CARM_JOINT_NAMES
 #: Free joints of each model: the C-arm alone, + the paper's translation d0, + the three table translations,
 #: + all table joints (tilts and rotation included).
 MODELS: dict[str, tuple[str, ...]] = {
@@ -86,7 +87,7 @@ def axis_target(T: np.ndarray) -> AxisTarget:
 def _five_dof_seeds(system: CArmSystem, T: np.ndarray) -> list[np.ndarray]:
     """Every 5-DOF closed-form branch for the pose T with all table joints at zero, as full q (nq,), each
     revolute joint moved by a whole turn into its range where that is possible (same pose)."""
-    base = system.dh_frames(np.zeros(system.nq))[1]
+    base = system.carm_base_pose
     sols = five_dof.solve_pose(system.carm, inverse(base) @ T)
     out = []
     turns = 2 * np.pi * np.array([0.0, -1.0, 1.0])  # the closed form wraps angles to (-π, π]
@@ -165,24 +166,7 @@ def table_rows(results: list[ModelReach]) -> list[str]:
 
 
 def plot(results: list[ModelReach], path=None):
-    """Bar chart of the reachable fraction per model; saved to ``path`` when given. Returns the figure."""
-    import matplotlib
+    """Bar chart of the reachable fraction per model (:func:`carmkin.plots.table_reach`); saved to ``path``."""
+    from carmkin import plots
 
-    if path is not None:
-        matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(7, 3.6))
-    fractions = [100 * r.fraction for r in results]
-    ax.bar([LABELS[r.model].replace(" (", "\n(").replace(", ", ",\n", 1) for r in results], fractions,
-           color="tab:blue")
-    for x, f in enumerate(fractions):
-        ax.text(x, f + 1, f"{f:.1f}%", ha="center")
-    ax.set_ylim(0, 110)
-    ax.set_ylabel("desired poses reachable (%)")
-    ax.tick_params(axis="x", labelsize=7)
-    ax.set_title(f"Reach by table DOFs ({len(results[0].reached)} poses)")
-    fig.tight_layout()
-    if path is not None:
-        fig.savefig(path)
-    return fig
+    return plots.table_reach(results, LABELS, path)

@@ -9,7 +9,8 @@ Protocol (§4.6.1, Fig. 4.6). For each table translation d0 and each C-arm confi
 4. per C-arm joint: K = number of poses whose required value is out of range, and mean, std (population),
    max, min of the excess |value − closest boundary| over those K poses (mm or degrees; all 0 when K = 0).
 
-Excesses ≤ ``tolerance`` (default 1e-9 m or rad) count as inside: the grid puts joints exactly on their
+Excesses ≤ ``tolerance`` (default :data:`~carmkin.model.params.JOINT_RANGE_TOLERANCE`, 1e-9 m or rad) count
+as inside: the grid puts joints exactly on their
 limits (d1 = 400 mm, θ2 = ±10°, d3 = 0 and 200 mm) and the round trip FK → IK is exact only to ~1e-15.
 Revolute values are compared to the range modulo 2π (:func:`carmkin.analytic.five_dof.range_excess`).
 """
@@ -17,18 +18,20 @@ Revolute values are compared to the range modulo 2π (:func:`carmkin.analytic.fi
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from carmkin.analytic import five_dof
 from carmkin.errors import CarmkinError
+from carmkin.model import singular_cases
+from carmkin.model.params import CARM_JOINT_NAMES, JOINT_RANGE_TOLERANCE
 from carmkin.model.system import CArmSystem
 from carmkin.transforms import inverse
 
 #: The five C-arm joints, in the order of q5.
-JOINTS = ("vertical", "wigwag", "horizontal", "angular", "orbital")
+JOINTS = CARM_JOINT_NAMES
 #: Display unit per joint and the factor from SI to it.
 UNITS = {"vertical": ("mm", 1e3), "wigwag": ("deg", 180 / math.pi), "horizontal": ("mm", 1e3),
          "angular": ("deg", 180 / math.pi), "orbital": ("deg", 180 / math.pi)}
@@ -140,8 +143,9 @@ def translation_key(translation: float) -> str:
 
 
 def base_in_table(system: CArmSystem) -> np.ndarray:
-    """Pose (4, 4) of the C-arm base frame (5-DOF frame 1) in the table frame with all joints at zero."""
-    return system.dh_frames(np.zeros(system.nq))[1]
+    """Pose (4, 4) of the C-arm base frame (5-DOF frame 1) in the table frame with all joints at zero
+    (:attr:`CArmSystem.carm_base_pose`)."""
+    return system.carm_base_pose
 
 
 def desired_poses(system: CArmSystem, q5: np.ndarray, translation: float) -> np.ndarray:
@@ -167,7 +171,7 @@ SIX_DOF_SINGULAR = 1e-3
 
 
 def six_dof_reachable(system: CArmSystem, q5: np.ndarray, translation: float, poses: np.ndarray,
-                      tolerance: float = 1e-9) -> np.ndarray:
+                      tolerance: float = JOINT_RANGE_TOLERANCE) -> np.ndarray:
     """(N,) True where the 6-DOF model reaches the pose within all ranges: the generating configuration
     [translation, q5] is inside, or (regular poses, when :mod:`carmkin.analytic_ik` is available and the
     system has no extra table joints) one of the two analytic IK branches is."""
@@ -184,7 +188,7 @@ def six_dof_reachable(system: CArmSystem, q5: np.ndarray, translation: float, po
         return reachable
     if system.table.joints:
         return reachable
-    det_j = np.sin(q5[:, 1] + system.setup.gamma3) * math.sin(system.setup.gamma1) * np.cos(q5[:, 3])
+    det_j = singular_cases.det_closed_form(system.setup, q5[:, 1], q5[:, 3])
     regular = np.flatnonzero(np.abs(det_j) >= SIX_DOF_SINGULAR)
     if regular.size:
         result = analytic_ik.solve_batch(system, poses[regular])
@@ -194,7 +198,7 @@ def six_dof_reachable(system: CArmSystem, q5: np.ndarray, translation: float, po
 
 
 def study_translation(system: CArmSystem, q5: np.ndarray, translation: float, *,
-                      tolerance: float = 1e-9) -> TranslationResult:
+                      tolerance: float = JOINT_RANGE_TOLERANCE) -> TranslationResult:
     """The study at one table translation d0 (m) for C-arm configurations q5 (n, 5) (m, rad)."""
     poses = desired_poses(system, q5, translation)
     p, z = desired_targets(system, q5, translation, poses)
@@ -216,7 +220,7 @@ def study_translation(system: CArmSystem, q5: np.ndarray, translation: float, *,
     )
 
 
-def run_study(system: CArmSystem, grid: StudyGrid = PAPER_GRID, *, tolerance: float = 1e-9,
+def run_study(system: CArmSystem, grid: StudyGrid = PAPER_GRID, *, tolerance: float = JOINT_RANGE_TOLERANCE,
               progress: Callable[[int], object] | None = None) -> StudyResult:
     """The §4.6.1 study of ``system`` over ``grid`` (see the module docstring); ``progress(n)`` after each
     translation with the number of poses done."""
@@ -280,40 +284,3 @@ def comparison_rows(result: StudyResult) -> list[tuple[str, str, str, str]]:
                     text = _same_precision(value, paper[stat]) if paper else f"{value:.2f}"
                 rows.append((f"{joint} {stat}", key, text, paper[stat] if paper else "—"))
     return rows
-
-
-def plot(result: StudyResult, path=None, joints: Sequence[str] = ("wigwag", "horizontal")):
-    """A matplotlib Figure of the excess (mean ± std, min–max band) and K against table translation, with
-    the dissertation's means and K as red crosses; saved to ``path`` when given."""
-    from matplotlib.figure import (
-        Figure,  # no pyplot: no global backend or figure state is touched
-    )
-
-    fig = Figure(figsize=(5.5 * len(joints), 6.5))
-    axes = fig.subplots(2, len(joints), sharex=True, squeeze=False)
-    d0 = np.array([r.translation * 1e3 for r in result.results])
-    for col, joint in enumerate(joints):
-        stats = [r.joints[joint] for r in result.results]
-        mean, std = np.array([s.mean for s in stats]), np.array([s.std for s in stats])
-        ax = axes[0, col]
-        ax.fill_between(d0, [s.min for s in stats], [s.max for s in stats], alpha=0.25, label="min–max (ours)")
-        ax.errorbar(d0, mean, yerr=std, fmt="o-", capsize=3, label="mean ± std (ours)")
-        paper = DISSERTATION_TABLE_4_5.get(joint)
-        if paper is not None:
-            keys = [translation_key(r.translation) for r in result.results]
-            ref = [(x, paper[k]["mean"], paper[k]["K"]) for x, k in zip(d0, keys) if k in paper]
-            if ref:
-                x, mean_ref, k_ref = zip(*ref)
-                ax.plot(x, mean_ref, "rx", zorder=5, label="mean (dissertation)")
-                axes[1, col].plot(x, k_ref, "rx", zorder=5, label="K (dissertation)")
-        ax.set_title(f"{joint}: excess ({UNITS[joint][0]})")
-        ax.legend(fontsize=8)
-        axes[1, col].bar(d0, [s.K for s in stats], width=30.0, label="K (ours)")
-        axes[1, col].legend(fontsize=8)
-        axes[1, col].set_ylabel("K (poses out of range)")
-        axes[1, col].set_xlabel("table translation d0 (mm)")
-    fig.suptitle(f"5-DOF IK of 6-DOF poses, {result.system} (§4.6.1, Table 4.5)")
-    fig.tight_layout()
-    if path is not None:
-        fig.savefig(path, dpi=120)
-    return fig

@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 from strategies import finite
 
 import carmkin
+from carmkin.model.singular_cases import SingularCase
 from carmkin.analytic.single_axis import (
     TRANSLATIONS,
     TableIKError,
@@ -59,7 +60,7 @@ def test_height_with_a_level_table_is_singular_case_a_and_solved_numerically():
     q[MOTORIZED.joint_names.index("table_height")] = 0.05
     q[-5:] = (0.2, 0.05, 0.1, 0.3, -0.2)
     result = solve_single_axis(MOTORIZED, MOTORIZED.fk(q), "table_height", q_held=q)
-    assert "a_table_parallel_to_vertical" in result.ik.singular
+    assert SingularCase.TABLE_PARALLEL_TO_VERTICAL in result.ik.singular
     assert result.ik.numerical
     assert np.abs(MOTORIZED.fk(result.q) - MOTORIZED.fk(q)).max() <= 1e-9
 

@@ -10,17 +10,17 @@ import pinocchio as pin
 import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
-from strategies import PRESET, configurations, poses, systems
+from strategies import PRESET, configurations, finite, poses, systems
 
 import carmkin
 from carmkin.model.bounds import NEAR_PARALLEL_SIN, PARALLEL_AXES_SIN
+from carmkin.model.params import JOINT_RANGE_TOLERANCE
 from carmkin.robot.verify import (
     FRAMES,
     closed_form_frames,
     pinocchio_frames,
-    rotation_angle_between,
 )
-from carmkin.transforms import inverse
+from carmkin.transforms import inverse, rotation_angle
 
 TOL = 1e-12
 
@@ -48,7 +48,7 @@ def test_closed_form_equals_pinocchio(system, qs):
     q = np.array(qs)
     a, b = closed_form_frames(system, q), pinocchio_frames(system, q)
     assert np.linalg.norm(a[..., :3, 3] - b[..., :3, 3], axis=-1).max() <= TOL
-    assert rotation_angle_between(a[..., :3, :3], b[..., :3, :3]).max() <= TOL
+    assert rotation_angle(a[..., :3, :3], b[..., :3, :3]).max() <= TOL
 
 
 def _yourdfpy_pose(robot, q, frame: str, root: str = "table") -> np.ndarray:
@@ -142,3 +142,45 @@ def test_expanded_closed_form_equals_the_dh_product_and_pinocchio(system, qs):
     assert np.abs(system.fk(q) - dh_product).max() <= 1e-14
     pinocchio_source = pinocchio_frames(system, q)[:, FRAMES.index("xray_source")]
     assert np.abs(system.fk(q) - pinocchio_source).max() <= TOL
+
+
+# --- derived lengths, the joint-range tolerance, the per-system caches ------------------------------------------
+@given(systems())
+def test_derived_lengths_are_those_of_the_dh_rows(system):
+    carm = system.carm
+    assert carm.source_to_orbital_axis == carm.orbital_offset + carm.a1
+    assert carm.arm_length == carm.length_offset - carm.a2
+    rows = system.dh_table
+    assert rows[3].d == carm.arm_length and rows[5].a == -carm.source_to_orbital_axis
+    assert (system.closed_form.L, system.closed_form.M) == (carm.source_to_orbital_axis, carm.arm_length)
+
+
+@given(st.floats(-1.0, 1.0, **finite), st.floats(0.0, 1.0, **finite),
+       st.floats(-3 * JOINT_RANGE_TOLERANCE, 3 * JOINT_RANGE_TOLERANCE, **finite))
+def test_a_value_on_a_limit_up_to_the_tolerance_is_in_range(lower, width, offset):
+    r = carmkin.JointRange(lower, lower + width)
+    for limit, sign in ((r.lower, -1.0), (r.upper, 1.0)):
+        value = limit + sign * abs(offset)
+        inside = abs(offset) <= JOINT_RANGE_TOLERANCE
+        assert bool(r.contains(value)) == inside
+        assert (r.excess(value) == 0.0) == inside
+        if not inside:  # the excess is the true distance beyond the limit, not beyond the widened one
+            assert float(r.excess(value)) == pytest.approx(value - limit, abs=1e-18)
+
+
+def test_solvers_are_cached_per_system_without_writing_into_it():
+    from carmkin import analytic_ik
+    from carmkin.analytic import dls
+
+    system = PRESET.replace(name="cache test")
+    before = set(vars(system))
+    assert analytic_ik.solver_for(system) is analytic_ik.solver_for(system)
+    assert dls.solver_for(system) is dls.solver_for(system)
+    assert not {k for k in set(vars(system)) - before if "solver" in k}
+    key = id(system)
+    assert key in analytic_ik.solver_for.cache
+    del system
+    import gc
+
+    gc.collect()
+    assert key not in analytic_ik.solver_for.cache and key not in dls.solver_for.cache

@@ -7,7 +7,7 @@ import pinocchio as pin
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from strategies import PRESET, finite
+from strategies import PRESET, configurations, finite, motorized_systems
 
 import carmkin
 from carmkin import InvalidParameterError, JointRange
@@ -16,8 +16,8 @@ from carmkin.robot.verify import (
     FRAMES,
     closed_form_frames,
     pinocchio_frames,
-    rotation_angle_between,
 )
+from carmkin.transforms import rotation_angle
 
 MOTORIZED = carmkin.load_preset("siremobile-iso-c3d-motorized-table")
 
@@ -48,8 +48,20 @@ def test_closed_form_equals_pinocchio_with_table_joints(qs):
     q = np.array(qs)
     a, b = closed_form_frames(MOTORIZED, q), pinocchio_frames(MOTORIZED, q)
     assert np.linalg.norm(a[..., :3, 3] - b[..., :3, 3], axis=-1).max() <= 1e-12
-    assert rotation_angle_between(a[..., :3, :3], b[..., :3, :3]).max() <= 1e-12
+    assert rotation_angle(a[..., :3, :3], b[..., :3, :3]).max() <= 1e-12
     assert np.abs(MOTORIZED.fk(q) - np.array([MOTORIZED.fk(qk) for qk in q])).max() <= 1e-15
+
+
+@settings(max_examples=15)
+@given(st.data())
+def test_closed_form_equals_pinocchio_for_random_motorized_tables(data):
+    """Random extra table joints (0–5; random axes, pivots, ranges) on random non-isocentric systems."""
+    system = data.draw(motorized_systems())
+    q = np.array(data.draw(st.lists(configurations(system, beyond=0.2), min_size=1, max_size=5)))
+    assert q.shape[1] == system.nq == 6 + len(system.table.joints)
+    a, b = closed_form_frames(system, q), pinocchio_frames(system, q)
+    assert np.linalg.norm(a[..., :3, 3] - b[..., :3, 3], axis=-1).max() <= 1e-12
+    assert rotation_angle(a[..., :3, :3], b[..., :3, :3]).max() <= 1e-12
 
 
 @given(table_configurations())
