@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from carmkin.errors import CarmkinError, InvalidConfigurationError, InvalidPoseError
+from carmkin.errors import CarmkinError, InvalidConfigurationError, InvalidPoseError, PresetError
 from carmkin.model.system import CArmSystem
 from carmkin.presets import list_presets, load_preset
 
@@ -55,6 +55,8 @@ def system_from_args(args: argparse.Namespace) -> CArmSystem:
         return load_preset(args.preset)
     except tomllib.TOMLDecodeError as exc:
         raise UsageError(f"--preset {args.preset}: not valid TOML ({exc})") from None
+    except PresetError as exc:
+        raise UsageError(f"--preset: {exc}") from None
 
 
 def require_six_joints(system: CArmSystem, command: str, alternative: str) -> None:
