@@ -47,14 +47,10 @@ def add_preset_argument(parser: argparse.ArgumentParser) -> None:
 
 def system_from_args(args: argparse.Namespace) -> CArmSystem:
     """The system named by ``--preset``; :class:`UsageError` for a missing or unreadable preset file."""
-    import tomllib
-
     if str(args.preset).endswith(".toml") and not Path(args.preset).is_file():
         raise UsageError(f"--preset {args.preset}: no such preset file")
     try:
         return load_preset(args.preset)
-    except tomllib.TOMLDecodeError as exc:
-        raise UsageError(f"--preset {args.preset}: not valid TOML ({exc})") from None
     except PresetError as exc:
         raise UsageError(f"--preset: {exc}") from None
 

@@ -365,7 +365,7 @@ def test_a_panorama_plan_opens_in_the_browser(tmp_path, capsys):
 def test_nonsense_inputs_are_refused_in_one_line(tmp_path, capsys):
     broken = tmp_path / "broken.toml"
     broken.write_text("a = [")
-    cases = ((["urdf", "--preset", broken], ["--preset", "not valid TOML"]),
+    cases = ((["urdf", "--preset", broken], ["--preset", "malformed TOML"]),
              (["urdf", "--preset", tmp_path / "none.toml"], ["--preset", "no such preset file"]),
              (["workspace", "--translations-mm", "5000"], ["--translations-mm 5000", "table translation range", "mm"]))
     for argv, words in cases:
