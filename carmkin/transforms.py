@@ -14,6 +14,7 @@ import math
 import numpy as np
 
 from carmkin.errors import InvalidPoseError
+from carmkin.validation import real_array
 
 #: Tolerance of :func:`check_rigid_transform` on ``||R^T R - I||`` and ``|det R - 1|``.
 RIGID_TOLERANCE = 1e-9
@@ -74,18 +75,10 @@ def check_rigid_transform(T, name: str = "pose", batch: bool = False) -> np.ndar
     """Return ``T`` as a float array after checking it is a rigid transform (or a stack of them).
 
     Raises :class:`InvalidPoseError` naming ``name`` when the shape is not (4, 4) (or (N, 4, 4) with
-    ``batch``), a value is NaN/Inf, the last row is not [0, 0, 0, 1], ``||R^T R - I|| > 1e-9`` or
+    ``batch``), a value is not a finite real number within :data:`~carmkin.validation.MAGNITUDE_LIMIT`, the last row is not [0, 0, 0, 1], ``||R^T R - I|| > 1e-9`` or
     ``|det R - 1| > 1e-9``.
     """
-    try:
-        T = np.asarray(T, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise InvalidPoseError(f"{name} must be numeric, got {type(T).__name__}") from exc
-    expected = "(N, 4, 4)" if batch else "(4, 4)"
-    if T.shape[-2:] != (4, 4) or T.ndim != (3 if batch else 2):
-        raise InvalidPoseError(f"{name} must have shape {expected}, got {T.shape}")
-    if not np.all(np.isfinite(T)):
-        raise InvalidPoseError(f"{name} contains NaN or Inf")
+    T = real_array(T, name, (None, 4, 4) if batch else (4, 4), error=InvalidPoseError, unit="m")
     if np.abs(T[..., 3, :] - (0, 0, 0, 1)).max(initial=0.0) > RIGID_TOLERANCE:
         raise InvalidPoseError(f"{name}: last row must be [0, 0, 0, 1]")
     R = T[..., :3, :3]
@@ -201,17 +194,9 @@ def nearest_rigid(T, name: str = "pose"):
     Raises :class:`InvalidPoseError` naming ``name`` for a bad shape, NaN/Inf, a reflection, or a matrix
     farther from rigid than :data:`NEARLY_RIGID_TOLERANCE` (``‖RᵀR − I‖_F`` or the last row).
     """
-    try:
-        T = np.asarray(T)
-        if np.iscomplexobj(T):
-            raise TypeError("complex")
-        T = T.astype(float)
-    except (TypeError, ValueError) as exc:
-        raise InvalidPoseError(f"{name} must be a real numeric 4x4 matrix, got {type(T).__name__}") from exc
+    T = real_array(T, name, error=InvalidPoseError, unit="m")
     if T.ndim not in (2, 3) or T.shape[-2:] != (4, 4):
         raise InvalidPoseError(f"{name} must have shape (4, 4) or (N, 4, 4), got {T.shape}")
-    if not np.all(np.isfinite(T)):
-        raise InvalidPoseError(f"{name} contains NaN or Inf")
     R = T[..., :3, :3]
     ortho = np.linalg.norm(np.swapaxes(R, -1, -2) @ R - np.eye(3), axis=(-2, -1))
     last = np.abs(T[..., 3, :] - (0.0, 0.0, 0.0, 1.0)).max(axis=-1)

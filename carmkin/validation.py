@@ -20,10 +20,12 @@ import numpy as np
 
 from carmkin.errors import CarmkinError, InvalidParameterError
 
-#: Largest magnitude any length (m) or angle (rad) may have anywhere in the toolkit: far beyond any real
-#: C-arm, table or pose, and small enough that squares and products of such numbers stay exact enough
-#: for the 1e-12 checks to mean something.
-MAGNITUDE_LIMIT = 1e3
+#: Largest magnitude (m or rad) of any number a public function accepts (joint values, pose entries,
+#: points): a thousand kilometres. Far beyond any real C-arm, table or pose — the IK's out-of-range
+#: branches near a singular pose reach thousands — and small enough that products of such numbers stay
+#: finite, so no overflow warning can leak. Geometry parameters have tighter bounds
+#: (:mod:`carmkin.model.bounds`).
+MAGNITUDE_LIMIT = 1e6
 
 
 def _describe(value) -> str:
@@ -75,7 +77,7 @@ def real_array(
     ):
         raise error(f"{name} must be {expected}, got shape {array.shape}")
     if finite and not np.all(np.isfinite(array)):
-        raise error(f"{name} must be finite, got {_describe(value)}")
+        raise error(f"{name} must be finite (no NaN or Inf), got {_describe(value)}")
     if limit is not None and array.size and np.max(np.abs(np.nan_to_num(array, posinf=0.0, neginf=0.0))) > limit:
         raise error(f"{name} must be {expected} within ±{limit:g}{unit_text}, got {_describe(value)}")
     return array

@@ -28,6 +28,7 @@ import numpy as np
 
 from carmkin.errors import InvalidConfigurationError, InvalidParameterError
 from carmkin.transforms import dh_matrix, rot_x, rot_y, translation
+from carmkin.validation import real_array
 
 from .params import CARM_JOINT_NAMES, JOINT_NAMES, PRISMATIC, CArmGeometry, TableSetup
 
@@ -96,18 +97,12 @@ def check_configuration(q, n_joints: int = 6, name: str = "q") -> np.ndarray:
     """Return ``q`` as a float array of shape (n,) or (N, n); raise a typed error otherwise.
 
     The one joint-vector check of the library: :class:`~carmkin.errors.InvalidConfigurationError` naming
-    ``name`` for a non-numeric or complex value, a wrong shape, NaN or Inf.
+    ``name`` for a non-numeric, boolean or complex value, a wrong shape, NaN, Inf or a magnitude beyond
+    :data:`~carmkin.validation.MAGNITUDE_LIMIT` (see :func:`carmkin.validation.real_array`).
     """
-    if np.iscomplexobj(q):
-        raise InvalidConfigurationError(f"{name} must be real, got complex values")
-    try:
-        q = np.asarray(q, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise InvalidConfigurationError(f"{name} must be numeric, got {type(q).__name__}") from exc
+    q = real_array(q, name, error=InvalidConfigurationError, unit="m, rad")
     if q.ndim not in (1, 2) or q.shape[-1] != n_joints:
         raise InvalidConfigurationError(f"{name} must have shape ({n_joints},) or (N, {n_joints}), got {q.shape}")
-    if not np.all(np.isfinite(q)):
-        raise InvalidConfigurationError(f"{name} contains NaN or Inf")
     return q
 
 
