@@ -170,8 +170,12 @@ def start_configuration(world: World, config: ExperimentConfig, q_reference, rng
     return q
 
 
-def run_task(world: World, config: ExperimentConfig, rng: np.random.Generator, scene=None) -> TaskResult:
-    """One repositioning task (see the module docstring)."""
+def run_task(world: World, config: ExperimentConfig, rng: np.random.Generator, scene=None,
+             on_step=None) -> TaskResult:
+    """One repositioning task (see the module docstring). ``on_step(step, q_true, q_next, truth)``, when
+    given, is called after each guidance update with the :class:`~.guidance.GuidanceStep`, the true joints
+    before and after the operator's move (``q_next`` is ``None`` when done or blocked) and the true path's
+    :class:`~.guidance.Sweep` (``None`` likewise)."""
     from carmkin.imaging import project
     from carmkin.robot.collision import CollisionScene
 
@@ -195,6 +199,9 @@ def run_task(world: World, config: ExperimentConfig, rng: np.random.Generator, s
         except (GuidanceError, PoseError) as exc:
             result.reason = f"step {result.steps}: {exc}"
             break
+        if step.done or step.blocked:
+            if on_step is not None:
+                on_step(step, q, None, None)
         if step.done:
             result.success, result.reason = True, None
             result.measured_translation = float(np.linalg.norm(T_measured[:3, 3] - T_ref_measured[:3, 3]))
@@ -205,6 +212,8 @@ def run_task(world: World, config: ExperimentConfig, rng: np.random.Generator, s
             break
         q_next = config.operator.execute(system, q, step.joint, step.move, rng)
         truth = sweep(system, scene, q, q_next, 0.0, config.guidance.lever_arm)
+        if on_step is not None:
+            on_step(step, q, q_next, truth)
         result.min_clearance = min(result.min_clearance, truth.min_distance)
         result.moves.append((system.joint_names[step.joint], step.move))
         result.steps += 1

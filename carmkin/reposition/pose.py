@@ -4,7 +4,7 @@ The seed solves ``s m = K [r1 r2 t] [X Y 1]ᵀ`` by normalized DLT, orthogonalis
 Levenberg–Marquardt on the reprojection error (eq. 3.9). The same pipeline on libraries: the initial pose
 from ``cv2.solvePnPGeneric`` with ``SOLVEPNP_IPPE`` for a planar pattern (both solutions of the planar
 ambiguity; ``SOLVEPNP_SQPNP`` for non-planar points), then Levenberg–Marquardt on each, the one with the
-smaller reprojection error winning. The LM is MINPACK's (``scipy.optimize.least_squares(method="lm")``)
+smaller reprojection error winning. The LM is MINPACK's (``lmder`` through ``scipy.optimize.leastsq``)
 with the analytic Jacobian below, by default: with the X-ray intrinsics (a ~13° field of view, so tilts of
 the pattern are weakly observed) ``cv2.solvePnPRefineLM`` stops far from the minimum (measured: sum of
 squared residuals 6.46 px² where the minimum is 3.46 px², 1.28° from the truth instead of 0.04°, for 48
@@ -35,11 +35,18 @@ MIN_POINTS = 4
 #: Object points whose smallest principal extent is below this fraction of the largest count as planar.
 PLANARITY_TOLERANCE = 1e-9
 #: Levenberg–Marquardt refinement: relative tolerances on the cost, the step and the gradient (MINPACK's
-#: ftol, xtol, gtol), and OpenCV's criteria for ``refine="opencv"`` (at most 100 iterations, step < 1e-14).
+#: ftol, xtol, gtol) and its budget of function evaluations (it converges in ~10 from an IPPE start; the
+#: candidate with the smaller residual wins anyway), and OpenCV's criteria for ``refine="opencv"`` (at most
+#: 100 iterations, step < 1e-14).
 LM_TOLERANCE = 1e-12
+LM_EVALUATIONS = 200
 LM_ITERATIONS = 100
 LM_EPSILON = 1e-14
 REFINERS = ("minpack", "opencv")
+#: The two IPPE solutions of a planar pattern are the two sides of its pose ambiguity, a reflection of the
+#: tilt about the line of sight; when their rotations differ by less than this (Frobenius norm, ~0.6°) they
+#: start in the same basin and only the first is refined.
+SAME_START = 0.01
 
 
 class PoseError(CarmkinError):
@@ -113,16 +120,18 @@ def reprojection_jacobian(K, T, object_points) -> np.ndarray:
     fx, s, fy = K[0, 0], K[0, 1], K[1, 1]
     # pixel gradients with respect to the marker-frame point, g = (d pixel / dXc) Rᵀ; then
     # d/dω = g Rᵀ [a]× = g × a (row-wise) and d/dδp = −g
-    d = np.zeros((2, len(a), 3))
-    d[0, :, 0], d[0, :, 1], d[0, :, 2] = fx * iz, s * iz, -(fx * Xc[:, 0] + s * Xc[:, 1]) * iz * iz
-    d[1, :, 1], d[1, :, 2] = fy * iz, -fy * Xc[:, 1] * iz * iz
+    n = len(a)
+    d = np.zeros((2 * n, 3))  # rows 2i, 2i+1: d(u, v)/dXc of point i
+    d[0::2, 0], d[0::2, 1], d[0::2, 2] = fx * iz, s * iz, -(fx * Xc[:, 0] + s * Xc[:, 1]) * iz * iz
+    d[1::2, 1], d[1::2, 2] = fy * iz, -fy * Xc[:, 1] * iz * iz
     g = d @ R.T
-    J = np.empty((len(a), 2, 6))
-    J[:, :, 0] = (g[:, :, 1] * a[:, 2] - g[:, :, 2] * a[:, 1]).T
-    J[:, :, 1] = (g[:, :, 2] * a[:, 0] - g[:, :, 0] * a[:, 2]).T
-    J[:, :, 2] = (g[:, :, 0] * a[:, 1] - g[:, :, 1] * a[:, 0]).T
-    J[:, :, 3:] = -np.swapaxes(g, 0, 1)
-    return J.reshape(-1, 6)
+    a2 = np.repeat(a, 2, axis=0)
+    J = np.empty((2 * n, 6))
+    J[:, 0] = g[:, 1] * a2[:, 2] - g[:, 2] * a2[:, 1]
+    J[:, 1] = g[:, 2] * a2[:, 0] - g[:, 0] * a2[:, 2]
+    J[:, 2] = g[:, 0] * a2[:, 1] - g[:, 1] * a2[:, 0]
+    J[:, 3:] = -g
+    return J
 
 
 def _perturbed(T0: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -136,15 +145,16 @@ def _perturbed(T0: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 
 def refine_minpack(K, T0, obj: np.ndarray, img: np.ndarray) -> np.ndarray:
-    """Levenberg–Marquardt (MINPACK) on the reprojection error from the camera pose ``T0``."""
-    from scipy.optimize import least_squares
+    """Levenberg–Marquardt (MINPACK's lmder, through ``scipy.optimize.leastsq``, whose thin wrapper costs
+    a third of ``least_squares``'s) on the reprojection error from the camera pose ``T0``."""
+    from scipy.optimize import leastsq
 
-    with np.errstate(divide="ignore", invalid="ignore"):
-        solution = least_squares(
+    with np.errstate(divide="ignore", invalid="ignore"):  # a poor start may put points behind the camera
+        x = leastsq(  # full_output: MINPACK's status is returned rather than warned about
             lambda x: _residuals(K, _perturbed(T0, x), obj, img).ravel(), np.zeros(6),
-            jac=lambda x: reprojection_jacobian(K, _perturbed(T0, x), obj),  # left Jacobian ≈ I: same optimum
-            method="lm", ftol=LM_TOLERANCE, xtol=LM_TOLERANCE, gtol=LM_TOLERANCE)
-    return _perturbed(T0, solution.x)
+            Dfun=lambda x: reprojection_jacobian(K, _perturbed(T0, x), obj),  # left Jacobian ≈ I: same optimum
+            full_output=True, ftol=LM_TOLERANCE, xtol=LM_TOLERANCE, gtol=LM_TOLERANCE, maxfev=LM_EVALUATIONS)[0]
+    return _perturbed(T0, x)
 
 
 def refine_opencv(K, rvec, tvec, obj: np.ndarray, img: np.ndarray) -> np.ndarray:
@@ -170,12 +180,16 @@ def solve_pose(object_points, image_points, K, sigma_px: float | None = None, re
         raise PoseError(f"refine must be one of {REFINERS}, got {refine!r}")
     method = cv2.SOLVEPNP_IPPE if _is_planar(obj) else cv2.SOLVEPNP_SQPNP
     count, rvecs, tvecs, _ = cv2.solvePnPGeneric(obj, img, K, None, flags=method)
-    best = None
+    best, starts = None, []
     for rvec, tvec in zip(rvecs[:count], tvecs[:count]):
+        start = _camera_pose(rvec, tvec)
+        if any(np.linalg.norm(start[:3, :3] - other) < SAME_START for other in starts):
+            continue  # both IPPE solutions in one basin (a nearly fronto-parallel view): refine once
+        starts.append(start[:3, :3])
         if refine == "opencv":
             T = refine_opencv(K, rvec, tvec, obj, img)
         else:
-            T = refine_minpack(K, _camera_pose(rvec, tvec), obj, img)
+            T = refine_minpack(K, start, obj, img)
         with np.errstate(divide="ignore", invalid="ignore"):
             residual = _residuals(K, T, obj, img)
         if not np.all(np.isfinite(residual)):

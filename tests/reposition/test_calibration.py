@@ -12,16 +12,13 @@ from strategies import rotations
 
 from carmkin.reposition import CalibrationError, calibrate_table
 from carmkin.reposition.calibration import METHODS, calibration_moves, residual_rms
+from carmkin.reposition.calibration import rotation_angle as angle
 from carmkin.reposition.world import random_rotation
 
 finite = dict(allow_nan=False, allow_infinity=False)
 #: Issue 14: ≤ 0.1° with 0.2 mm noise on ≥ 6 positions (checked on the 95th percentile of 200 draws).
 NOISY_LIMIT_DEG = 0.1
 NOISE = 0.0002
-
-
-def angle(R_a, R_b) -> float:
-    return 2.0 * math.asin(min(1.0, np.linalg.norm(R_a.T @ R_b - np.eye(3)) / (2.0 * math.sqrt(2.0))))
 
 
 @given(rotations(), st.integers(3, 12), st.floats(0.05, 0.5, **finite),
