@@ -62,8 +62,7 @@ def bench_pose(system, trials: int, rng) -> dict:
 
     scene = CollisionScene.from_system(system)
     references = [experiment.sample_reference(world, config, rng, scene) for _ in range(max(20, trials // 20))]
-    cases = {"working distance (zero configuration, 415 mm)": [np.zeros(system.nq)],
-             "random reference configurations": references}
+    cases = {"zero configuration (board 415 mm)": [np.zeros(system.nq)], "random references": references}
     print(f"1. pose from corner lists, {SIGMA_PX} px noise, {trials} trials per row (median / p95)")
     out = {}
     for label, qs in cases.items():
@@ -77,7 +76,7 @@ def bench_pose(system, trials: int, rng) -> dict:
                 times.append(time.perf_counter() - start)
                 errors.append(pose_errors(estimate.T, T_true))
                 predicted.append(np.sqrt(np.trace(estimate.covariance[3:, 3:])) * 1e3)
-            out[(label, refine)] = summarize(f"{label[:32]}, LM {refine}", errors) + (statistics.median(times),)
+            out[(label, refine)] = summarize(f"{label}, LM {refine}", errors) + (statistics.median(times),)
         print(f"  {'':<44} covariance: position sd {np.median(predicted):.2f} mm (median)")
     return out
 

@@ -66,3 +66,10 @@ def test_bad_noise_and_operator_raise():
         OperatorModel(relative=float("nan"))
     with pytest.raises(SimulationError, match="tasks"):
         experiment.run_experiment(SYSTEM, tasks=0)
+
+
+def test_a_motorized_table_task_goes_through_the_one_solve():
+    motorized = carmkin.load_preset("siremobile-iso-c3d-motorized-table")
+    results = experiment.run_experiment(motorized, experiment.ExperimentConfig(), tasks=1, seed=3)
+    assert results[0].success, results[0].reason
+    assert results[0].translation < 0.05

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import carmkin
@@ -70,6 +70,7 @@ def test_sweep_finds_a_collision_between_two_clear_ends():
     assert not result.clear
 
 
+@settings(max_examples=40)  # each example checks 100 configurations densely
 @given(st.data())
 def test_a_clear_sweep_is_clear_everywhere(data):
     q0 = in_range(SYSTEM, data)
