@@ -64,7 +64,7 @@ def visible_corners(board: MarkerBoard, K, image_size, T_marker_camera) -> Corne
 
     ``image_size`` = (columns, rows) in px. Empty when the camera sees the back of the board.
     """
-    columns, rows = _image_size(image_size)
+    columns, rows = check_image_size(image_size)
     T = check_rigid_transform(T_marker_camera, "T_marker_camera")
     corners = board.corners
     if T[2, 3] >= 0.0:  # the board's Z points away from its printed side: the camera must be at Z < 0
@@ -92,7 +92,8 @@ def camera_in_marker(T_table_marker, T_table_camera) -> np.ndarray:
         T_table_camera, "T_table_camera")
 
 
-def _image_size(image_size) -> tuple[int, int]:
+def check_image_size(image_size) -> tuple[int, int]:
+    """``image_size`` as (columns, rows) positive ints (px), else a :class:`CameraError`."""
     try:
         columns, rows = (int(v) for v in image_size)
     except (TypeError, ValueError) as exc:

@@ -145,7 +145,7 @@ def read_joints(model, T_source, q_previous, q_table=None) -> np.ndarray:
     finite = np.all(np.isfinite(solutions), axis=1)
     if not finite.any():
         raise GuidanceError("the measured pose has no IK solution on the model")
-    distance = np.where(finite, np.nanmax(np.abs(solutions - q6_prev), axis=1), np.inf)
+    distance = [np.max(np.abs(q6 - q6_prev)) if ok else np.inf for q6, ok in zip(solutions, finite)]
     q6 = solutions[int(np.argmin(distance))]
     k = len(q_table)
     return np.concatenate((q6[:1], q_table, q6[1:])) if k else q6

@@ -16,7 +16,7 @@ import numpy as np
 
 from carmkin.transforms import check_rigid_transform, inverse
 
-from .camera import CameraError, _image_size, check_intrinsics
+from .camera import CameraError, check_image_size, check_intrinsics
 from .pattern import MarkerBoard
 
 #: Resolution of the board texture (px per mm): ~1:1 with the image at the working distance (~8 px/mm).
@@ -55,7 +55,7 @@ def render(board: MarkerBoard, K, image_size, T_marker_camera, blur_px: float = 
     """
     import cv2
 
-    columns, rows = _image_size(image_size)
+    columns, rows = check_image_size(image_size)
     for name, value in (("blur_px", blur_px), ("noise_gray", noise_gray)):
         if not (np.isfinite(value) and value >= 0):
             raise CameraError(f"{name} must be finite and >= 0, got {value}")
