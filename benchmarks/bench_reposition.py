@@ -81,6 +81,31 @@ def bench_pose(system, trials: int, rng) -> dict:
     return out
 
 
+def bench_model_noise(system, trials: int, rng) -> None:
+    """Pose noise → γ1..3, D1..3 at the zero configuration: linear propagation against a Monte Carlo."""
+    from carmkin.reposition import model
+
+    board = carmkin.reposition.pattern.MarkerBoard()
+    mount = system_mount(system, board)
+    K, size = system.carm.intrinsics(), (system.carm.detector_columns, system.carm.detector_rows)
+    q = np.zeros(system.nq)
+    T_table = system.fk(q)
+    view = camera.visible_corners(board, K, size, camera.camera_in_marker(mount, T_table))
+    estimate = pose.pose_from_view(view, K, sigma_px=SIGMA_PX)
+    linear = np.sqrt(np.diag(model.setup_covariance(system, T_table, q, model.to_table_frame(estimate.covariance, mount[:3, :3]))))
+    samples = []
+    for _ in range(trials):
+        noisy = pose.pose_from_view(camera.with_noise(view, SIGMA_PX, rng), K)
+        setup = model.setup_from_pose(system, mount @ noisy.T, q)
+        samples.append([setup.gamma1, setup.gamma2, setup.gamma3, setup.D1, setup.D2, setup.D3])
+    monte_carlo = np.std(np.array(samples), axis=0)
+    scale = np.array([180 / math.pi] * 3 + [1e3] * 3)
+    print(f"\n1b. model from one measured pose (eq. 4.3), zero configuration, {SIGMA_PX} px: sd of "
+          "γ1, γ2, γ3 (deg) and D1, D2, D3 (mm)")
+    print("  linear propagation " + " ".join(f"{v:8.3f}" for v in linear * scale))
+    print(f"  Monte Carlo ({trials}) " + " ".join(f"{v:8.3f}" for v in monte_carlo * scale))
+
+
 def bench_image_path(system, trials: int, rng) -> None:
     board = carmkin.reposition.pattern.MarkerBoard()
     mount = system_mount(system, board)
@@ -190,6 +215,7 @@ def main() -> None:
     rng = np.random.default_rng(0)
     trials = 200 if args.quick else 2000
     bench_pose(system, trials, rng)
+    bench_model_noise(system, trials // 2, rng)
     bench_image_path(system, 10 if args.quick else 100, rng)
     bench_calibration(50 if args.quick else 500)
     bench_guidance(system, 30 if args.quick else 1000, seed=1)

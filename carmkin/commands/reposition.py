@@ -115,8 +115,11 @@ def _simulate(args) -> int:
               f"{step.sweep.samples} checks); operator moved {done}; true path "
               f"{'clear' if truth.clear else 'COLLIDES'}, min distance {truth.min_distance * 1e3:.0f} mm")
 
-    print(f"{system.name}: pattern mounted {math.degrees(ex.rotation_error(world.T_table_marker[:3, :3], world.tRm)) * 3:.2f}° "
-          f"(sum of |Euler| angles) from the calibrated rotation; corner noise {config.corner_noise_px} px")
+    from carmkin.reposition.calibration import rotation_angle
+
+    off = math.degrees(rotation_angle(world.T_table_marker[:3, :3], world.tRm))
+    print(f"{system.name}: calibrated marker→table rotation {off:.2f}° from the true mount; corner noise "
+          f"{config.corner_noise_px} px")
     result = ex.run_task(world, config, rng, on_step=show)
     if not result.success:
         print(f"not repositioned: {result.reason}")

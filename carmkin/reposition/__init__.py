@@ -9,7 +9,7 @@ simulates the §4.6.2 repositioning experiment.
 
 Modules: :mod:`.pattern` (the board and its mount), :mod:`.camera` (ideal/noisy corner lists),
 :mod:`.render` (synthetic images), :mod:`.pose`, :mod:`.calibration`, :mod:`.model`, :mod:`.guidance`,
-:mod:`.experiment`. OpenCV (``pip install "carmkin[reposition]"``) is imported on first use only.
+:mod:`.world` (the simulation's truth: room, camera noise, operator) and :mod:`.experiment`. OpenCV (``pip install "carmkin[reposition]"``) is imported on first use only.
 
 Contract (``../shared/DESIGN.md``)::
 
