@@ -1,0 +1,148 @@
+"""Guidance: reading joints off poses, the swept collision check, moves one joint at a time to the goal."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import carmkin
+from carmkin.reposition import guidance
+from carmkin.robot import validity
+from carmkin.robot.collision import CollisionScene
+
+SYSTEM = carmkin.load_preset("siremobile-iso-c3d")
+MOTORIZED = carmkin.load_preset("siremobile-iso-c3d-motorized-table")
+SCENE = CollisionScene.from_system(SYSTEM)
+finite = dict(allow_nan=False, allow_infinity=False)
+#: coal's GJK distances between boxes repeat only to ~1e-6 m (measured: 1.4e-6 m for the same q twice).
+DISTANCE_NOISE = 1e-5
+
+
+def in_range(system, data):
+    return np.array([data.draw(st.floats(lo, hi, **finite)) for lo, hi in zip(system.lower, system.upper)])
+
+
+@given(st.data())
+def test_read_joints_inverts_the_fk(data):
+    for system in (SYSTEM, MOTORIZED):
+        q = in_range(system, data)
+        nearby = q + data.draw(st.floats(-0.01, 0.01, **finite))
+        read = guidance.read_joints(system, system.fk(q), nearby, q_table=system.split(q)[1])
+        np.testing.assert_allclose(system.fk(read), system.fk(q), atol=1e-9)
+        np.testing.assert_allclose(read, q, atol=1e-7)
+
+
+@given(st.data())
+def test_lever_arm_bounds_how_fast_distances_change(data):
+    """The sweep's premise: moving joint j by δ changes every pair distance by at most L_j |δ|."""
+    options = guidance.GuidanceOptions()
+    q = in_range(SYSTEM, data)
+    j = data.draw(st.integers(0, SYSTEM.nq - 1))
+    delta = data.draw(st.floats(-0.05, 0.05, **finite))
+    q2 = q.copy()
+    q2[j] += delta
+    model = SYSTEM.pinocchio()[0]
+    d1 = SCENE.distances(q=q)
+    d2 = SCENE.distances(q=q2)
+    bound = (1.0 if SYSTEM.prismatic[j] else options.lever_arm) * abs(delta)
+    assert np.max(np.abs(d2 - d1)) <= bound + DISTANCE_NOISE, (model.names[j + 1], np.max(np.abs(d2 - d1)), bound)
+
+
+def dense_min_distance(q0, q1, samples=400):
+    return min(validity.check(SYSTEM, q0 + t * (q1 - q0), scene=SCENE).min_distance
+               for t in np.linspace(0.0, 1.0, samples))
+
+
+def test_sweep_finds_a_collision_between_two_clear_ends():
+    # raise the arm to the top with the C turned 90° about the orbital axis: the path of the angular joint
+    # from -60° to +60° passes through the table although both ends are clear
+    q0 = np.array([0.0, 0.4, 0.0, 0.1, math.radians(-100), 0.0])
+    q1 = q0.copy()
+    q1[4] = math.radians(100)
+    ends = [validity.check(SYSTEM, q, scene=SCENE).min_distance for q in (q0, q1)]
+    middle = dense_min_distance(q0, q1)
+    assert min(ends) > 0.005 and middle < 0.0, (ends, middle)
+    result = guidance.sweep(SYSTEM, SCENE, q0, q1, 0.005, 2.5)
+    assert not result.clear
+
+
+@settings(max_examples=40)  # each example checks 100 configurations densely
+@given(st.data())
+def test_a_clear_sweep_is_clear_everywhere(data):
+    q0 = in_range(SYSTEM, data)
+    j = data.draw(st.integers(0, SYSTEM.nq - 1))
+    q1 = q0.copy()
+    q1[j] = data.draw(st.floats(SYSTEM.lower[j], SYSTEM.upper[j], **finite))
+    result = guidance.sweep(SYSTEM, SCENE, q0, q1, 0.005, 2.5)
+    if result.clear:
+        assert dense_min_distance(q0, q1, 100) >= 0.005 - DISTANCE_NOISE
+
+
+def test_exact_guidance_reaches_the_goal_one_joint_at_a_time():
+    q_start = np.zeros(6)
+    q_goal = np.array([0.1, 0.1, math.radians(5), 0.12, math.radians(15), math.radians(-10)])
+    guide = guidance.Guide(SYSTEM, SYSTEM.fk(q_goal), q_start)
+    q, moved = q_start, []
+    for _ in range(10):
+        step = guide.step(SYSTEM.fk(q))
+        if step.done:
+            break
+        assert step.sweep.clear and step.blocked is None
+        moved.append(step.joint)
+        q = q.copy()
+        q[step.joint] += step.move
+    assert step.done
+    np.testing.assert_allclose(q, q_goal, atol=1e-7)
+    assert len(moved) == len(set(moved)) <= 6  # each joint once
+
+
+def test_motorized_table_guidance_uses_the_one_solve():
+    q_start = np.zeros(MOTORIZED.nq)
+    q_goal = q_start.copy()
+    q_goal[MOTORIZED.joint_names.index("orbital")] = math.radians(10)
+    q_goal[MOTORIZED.joint_names.index("table_height")] = 0.05
+    guide = guidance.Guide(MOTORIZED, MOTORIZED.fk(q_goal), q_start)
+    np.testing.assert_allclose(MOTORIZED.fk(guide.q_goal), MOTORIZED.fk(q_goal), atol=1e-6)
+    q = q_start
+    for _ in range(MOTORIZED.nq + 1):
+        _, q_table = MOTORIZED.split(q)
+        step = guide.step(MOTORIZED.fk(q), q_table=q_table)
+        if step.done:
+            break
+        q = q.copy()
+        q[step.joint] += step.move
+    assert step.done
+    np.testing.assert_allclose(MOTORIZED.fk(q), MOTORIZED.fk(q_goal), atol=1e-6)
+
+
+def test_thresholds_stop_the_guidance():
+    q = np.array([0.0, 0.1, 0.0, 0.1, 0.0, 0.0])
+    near = q + np.array([0.0015, 0.0, math.radians(0.4), 0.0, 0.0, 0.0])
+    guide = guidance.Guide(SYSTEM, SYSTEM.fk(near), q)
+    assert guide.step(SYSTEM.fk(q)).done
+    strict = guidance.Guide(SYSTEM, SYSTEM.fk(near), q, guidance.GuidanceOptions(translation_threshold=0.001))
+    step = strict.step(SYSTEM.fk(q))
+    assert not step.done and SYSTEM.joint_names[step.joint] == "table_translation"
+
+
+@pytest.mark.parametrize("changes, match", [
+    ({"translation_threshold": 0.0}, "translation_threshold"),
+    ({"rotation_threshold": float("nan")}, "rotation_threshold"),
+    ({"path_clearance": 0.02}, "path_clearance"),
+    ({"order": ("vertical", "tilt")}, "unknown joint"),
+])
+def test_bad_options_raise(changes, match):
+    with pytest.raises(guidance.GuidanceError, match=match):
+        options = guidance.GuidanceOptions(**changes)
+        options.move_order(SYSTEM)
+
+
+def test_an_unreachable_reference_raises():
+    T = SYSTEM.fk(np.zeros(6))
+    T[:3, 3] += (0.0, 0.0, 5.0)  # 5 m along the table: beyond the translation range
+    with pytest.raises(guidance.GuidanceError, match="no collision-free solution"):
+        guidance.Guide(SYSTEM, T, np.zeros(6))
