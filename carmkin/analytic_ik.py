@@ -45,6 +45,7 @@ from carmkin.model.kinematics import check_configuration
 from carmkin.model.per_system import per_system
 from carmkin.model.params import JOINT_NAMES, JOINT_RANGE_TOLERANCE, PRISMATIC
 from carmkin.transforms import RIGID_TOLERANCE, check_rigid_transform, pose_error, wrap_angle
+from carmkin.validation import MAGNITUDE_LIMIT
 
 #: Below this |det J| (eq. 4.7, dimensionless) a pose is treated as singular and solved numerically. The
 #: closed form loses about eps/|factor| of accuracy; at 1e-5 that stays ~1e-10 m / rad for poses within a
@@ -569,10 +570,12 @@ def _check_rigid_batch(T) -> tuple[np.ndarray, np.ndarray]:
         T = check_rigid_transform(T, "Ts", batch=True)
     rows = np.ascontiguousarray(T.reshape(len(T), 16).T)
     a, b, c, px, d, e, f, py, g, h, i, pz, l0, l1, l2, l3 = rows
-    ortho, det = _rigidity(a, b, c, d, e, f, g, h, i)
+    with np.errstate(invalid="ignore", over="ignore"):  # non-finite or huge entries fail `ok` below
+        ortho, det = _rigidity(a, b, c, d, e, f, g, h, i)
     tol = RIGID_TOLERANCE
     ok = (ortho <= tol * tol) & (np.abs(det - 1.0) <= tol) & (np.abs(l3 - 1.0) <= tol)
-    ok &= (np.abs(l0) <= tol) & (np.abs(l1) <= tol) & (np.abs(l2) <= tol) & np.isfinite(px + py + pz)
+    ok &= (np.abs(l0) <= tol) & (np.abs(l1) <= tol) & (np.abs(l2) <= tol)
+    ok &= (np.abs(px) <= MAGNITUDE_LIMIT) & (np.abs(py) <= MAGNITUDE_LIMIT) & (np.abs(pz) <= MAGNITUDE_LIMIT)
     if not ok.all():  # NaN fails every comparison above
         check_rigid_transform(T, "Ts", batch=True)  # raises the typed error naming the problem
         bad = int(np.flatnonzero(~ok)[0])
@@ -594,7 +597,8 @@ def _rows(T):
         T = check_rigid_transform(T, "T")
     rows = T.tolist()
     (a, b, c, px), (d, e, f, py), (g, h, i, pz), last = rows
-    ok = math.isfinite(a + b + c + d + e + f + g + h + i + px + py + pz) and last == [0.0, 0.0, 0.0, 1.0]
+    ok = (math.isfinite(a + b + c + d + e + f + g + h + i) and last == [0.0, 0.0, 0.0, 1.0]
+          and max(abs(px), abs(py), abs(pz)) <= MAGNITUDE_LIMIT)  # NaN fails the comparison
     if ok:
         ortho, det = _rigidity(a, b, c, d, e, f, g, h, i)
         ok = ortho <= RIGID_TOLERANCE * RIGID_TOLERANCE and abs(det - 1.0) <= RIGID_TOLERANCE

@@ -158,7 +158,7 @@ def solve(
         path, closed, solutions, error = found
         direct = path is Path.CLOSED_FORM or not (weights_given and q_current is not None)
         chosen = int(getattr(closed, "chosen", 0) or 0) if closed is not None else 0
-        order = [chosen] + [k for k in range(len(solutions)) if k != chosen]
+        order = [chosen] + [k for k in range(len(solutions)) if k != chosen] if len(solutions) else []
         for k in order:
             name = f"branch {k}" if path is Path.CLOSED_FORM else f"single-axis branch {k}"
             q_k = solutions[k]

@@ -340,6 +340,8 @@ MAP_MEASURES = ("det", "manipulability", "inverse-condition", "sigma-min")
 def joint_index(name: str) -> int:
     """Index in q of a joint given by name (``wigwag``) or symbol (``theta2``, ``d3``)."""
     symbols = ("d0", "d1", "theta2", "d3", "theta4", "theta5")
+    if not isinstance(name, str):
+        raise SingularityError(f"joint must be a name ({', '.join(JOINT_NAMES)}) or symbol, got {name!r}")
     key = name.strip().lower()
     if key in JOINT_NAMES:
         return JOINT_NAMES.index(key)

@@ -29,6 +29,7 @@ from hypothesis import strategies as st
 from strategies import poses
 
 import carmkin
+from carmkin.model.bounds import MAX_ANGLE, MAX_LENGTH, MAX_SETUP_DISTANCE
 
 #: Examples per entry point in CI, and the multiplier for a long run.
 FUZZ_EXAMPLES = 60
@@ -153,7 +154,7 @@ def test_fk(system, data):
 def test_carm_geometry(field, value):
     status, carm = call(replace, PRESET.carm, **{field: value})
     if status == "ok":
-        assert np.isfinite(getattr(carm, field)) and abs(getattr(carm, field)) < 1e3, "absurd magnitude accepted"
+        assert np.isfinite(getattr(carm, field)) and abs(getattr(carm, field)) <= MAX_LENGTH, "absurd magnitude accepted"
         system = PRESET.replace(carm=carm)
         assert is_rigid(system.fk(np.clip(np.zeros(6), system.lower, system.upper)))
 
@@ -163,7 +164,8 @@ def test_carm_geometry(field, value):
 def test_table_setup(field, value):
     status, setup = call(replace, PRESET.setup, **{field: value})
     if status == "ok":
-        assert np.isfinite(getattr(setup, field)) and abs(getattr(setup, field)) < 1e3
+        bound = MAX_SETUP_DISTANCE if field.startswith("D") else MAX_ANGLE
+        assert np.isfinite(getattr(setup, field)) and abs(getattr(setup, field)) <= bound
 
 
 @fuzz()
@@ -171,7 +173,7 @@ def test_table_setup(field, value):
 def test_table_setup_from_pose(T):
     status, setup = call(carmkin.TableSetup.from_pose, T)
     if status == "ok":
-        assert all(abs(v) < 1e3 for v in (setup.D1, setup.D2, setup.D3)), "near-singular setup gave garbage"
+        assert all(abs(v) <= MAX_SETUP_DISTANCE for v in (setup.D1, setup.D2, setup.D3)), "near-singular garbage"
 
 
 @fuzz()

@@ -18,6 +18,7 @@ import numpy as np
 from carmkin import transforms
 from carmkin.errors import CarmkinError
 from carmkin.transforms import check_rigid_transform
+from carmkin.validation import MAGNITUDE_LIMIT, real_array, real_scalar
 
 
 class ImagingError(CarmkinError):
@@ -25,25 +26,22 @@ class ImagingError(CarmkinError):
 
 
 def _points(X, dim: int, name: str) -> np.ndarray:
-    X = np.asarray(X, dtype=float)
+    # pixels may be far out of the image (a point near the source plane): no magnitude bound for them
+    X = real_array(X, name, error=ImagingError, limit=None if "pixels" in name else MAGNITUDE_LIMIT)
     if X.ndim == 1:
         X = X[None, :]
-    if X.ndim != 2 or X.shape[1] != dim or not np.all(np.isfinite(X)):
-        raise ImagingError(f"{name} must be finite with shape ({dim},) or (N, {dim}), got {np.shape(X)}")
+    if X.ndim != 2 or X.shape[1] != dim:
+        raise ImagingError(f"{name} must have shape ({dim},) or (N, {dim}), got {X.shape}")
     return X
 
 
 def _matrix3(M, name: str) -> np.ndarray:
-    M = np.asarray(M, dtype=float)
-    if M.shape != (3, 3) or not np.all(np.isfinite(M)):
-        raise ImagingError(f"{name} must be a finite 3x3 matrix, got shape {M.shape}")
-    return M
+    return real_array(M, name, (3, 3), error=ImagingError)
 
 
 def _plane(n, d, name: str = "plane") -> tuple[np.ndarray, float]:
-    n = np.asarray(n, dtype=float)
-    if n.shape != (3,) or not np.all(np.isfinite(n)) or not np.isfinite(d):
-        raise ImagingError(f"{name}: normal must be a finite (3,) vector and distance finite")
+    n = real_array(n, f"{name} normal", (3,), error=ImagingError)
+    d = real_scalar(d, f"{name} distance", error=ImagingError, unit="m")
     norm = np.linalg.norm(n)
     if abs(norm - 1.0) > 1e-9:
         raise ImagingError(f"{name}: normal must be a unit vector, |n| = {norm}")

@@ -95,7 +95,7 @@ class CArmSystem:
 
         if q_table.ndim == 1:
             return inverse_chain(self.table.joints, q_table)
-        return np.array([inverse_chain(self.table.joints, v) for v in q_table])
+        return np.array([inverse_chain(self.table.joints, v) for v in q_table]).reshape(len(q_table), 4, 4)
 
     def _with_table_joints(self, q, poses_of_q6) -> np.ndarray:
         """Poses ``Tz(d0) · E(q_table) · P(q6 with d0 = 0)`` for poses P computed by ``poses_of_q6``."""

@@ -9,6 +9,7 @@ give. See docs/PRESETS.md.
 from __future__ import annotations
 
 import difflib
+import os
 import math
 import tomllib
 from dataclasses import dataclass
@@ -73,6 +74,9 @@ def load_preset(name_or_path: str | Path) -> CArmSystem:
     malformed TOML, an unknown section or key, a wrong type or a value out of bounds, and
     :class:`~carmkin.errors.UnknownPresetError` for an unknown preset or ``base``.
     """
+    if not isinstance(name_or_path, (str, os.PathLike)):
+        raise PresetError(f"preset must be a preset name ({', '.join(list_presets())}) or the path of a .toml "
+                          f"file, got {name_or_path!r}")
     data, origin, label = _read(name_or_path)
     return _build(data, origin, label)
 

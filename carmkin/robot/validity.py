@@ -17,6 +17,7 @@ from typing import Sequence
 import numpy as np
 
 from carmkin.errors import InvalidConfigurationError
+from carmkin.validation import real_array, real_scalar
 from carmkin.transforms import segment_hits_box
 
 from .collision import CollisionScene, Obstacle, link_of
@@ -129,11 +130,8 @@ def check(
     (one forward-kinematics pass per configuration).
     """
     model = system.pinocchio()[0]
-    q = np.asarray(q, dtype=float)
-    if q.shape != (model.nq,) or not np.all(np.isfinite(q)):
-        raise InvalidConfigurationError(f"q must be a finite vector of shape ({model.nq},), got {q.shape}")
-    if not np.isfinite(margin) or margin < 0:
-        raise InvalidConfigurationError(f"margin must be finite and >= 0 (m), got {margin}")
+    q = real_array(q, "q", (model.nq,), error=InvalidConfigurationError, unit="m, rad")
+    margin = real_scalar(margin, "margin", error=InvalidConfigurationError, low=0.0, unit="m")
     if scene is not None and obstacles:
         raise InvalidConfigurationError("give the obstacles either in the scene or as obstacles, not both")
     if state is None:
