@@ -129,10 +129,12 @@ def read_isocenter_geometry(ds, frame: int = 0) -> dicom.IsocenterGeometry:
 
 @dataclass
 class DicomView:
-    """The source pose (4, 4, table frame, m) that a dataset's geometry asks for, and where it came from."""
+    """The source pose (4, 4, table frame, m) that a dataset's geometry asks for, where it came from, and
+    whether the dataset fixes the rotation about the beam (``full_pose``; XA angles leave it free)."""
 
     pose: np.ndarray
     source: str
+    full_pose: bool = True
 
 
 def view_from_dataset(ds, isocenter=None, patient_origin=(0.0, 0.0, 0.0)) -> DicomView:
@@ -146,14 +148,16 @@ def view_from_dataset(ds, isocenter=None, patient_origin=(0.0, 0.0, 0.0)) -> Dic
     isocenter = T_patient[:3, 3] if isocenter is None else np.asarray(isocenter, dtype=float)
     pose = dicom.pose_from_xa_angles(_float(ds, "PositionerPrimaryAngle"), _float(ds, "PositionerSecondaryAngle"),
                                      isocenter, _float(ds, "DistanceSourceToPatient") / MM, T_patient)
-    return DicomView(pose, "XA positioner angles")
+    return DicomView(pose, "XA positioner angles", full_pose=False)
 
 
 def moves_for_dataset(system, ds, q_current=None, isocenter=None, patient_origin=(0.0, 0.0, 0.0), **solve_kwargs):
     """``(view, result)``: the dataset's view and the :func:`carmkin.qp_ik.solve` result reaching it from
-    ``q_current`` (joints and table joints; ``result.q − q_current`` are the moves). The XA angles leave the
-    rotation about the beam free in DICOM; we ask for Ap3's rule (rotation 0), as a full pose."""
+    ``q_current`` (joints and table joints; ``result.q − q_current`` are the moves). An Enhanced XA view is a
+    full pose; XA angles fix the source position and the beam, the rotation about the beam stays free
+    (:class:`carmkin.qp_ik.AxisTarget`)."""
     from carmkin import qp_ik
 
     view = view_from_dataset(ds, isocenter, patient_origin)
-    return view, qp_ik.solve(system, view.pose, q_current=q_current, **solve_kwargs)
+    target = view.pose if view.full_pose else qp_ik.AxisTarget(tuple(view.pose[:3, 3]), tuple(view.pose[:3, 2]))
+    return view, qp_ik.solve(system, target, q_current=q_current, **solve_kwargs)

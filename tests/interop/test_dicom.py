@@ -241,3 +241,19 @@ def test_moves_reproduce_the_view_of_a_dicom_image():
         view, result = dicom_io.moves_for_dataset(system, ds, q_current=q_now)
         assert result.success, result.reason
         assert pose_error(system.fk(result.q), system.fk(q_image)) <= FILE_ROUND_TRIP
+
+
+def test_moves_reproduce_the_beam_of_an_xa_image():
+    """XA angles + the isocentre fix the source and the beam; the rotation about the beam is left free."""
+    from carmkin.interop import dicom_io
+
+    q_now = 0.5 * (PRESET.lower + PRESET.upper)
+    q_image = q_now + np.array([0.05, 0.0, 0.0, 0.0, 0.1, 0.2])
+    T = PRESET.fk(q_image)
+    ds = through_a_file(dicom_io.write_xa(PRESET, q_image, "FFS", (0.05, 0.0, -0.1)))
+    view, result = dicom_io.moves_for_dataset(PRESET, ds, q_current=q_now, patient_origin=(0.05, 0.0, -0.1),
+                                              isocenter=T[:3, 3] + PRESET.carm.orbital_offset * T[:3, 2])
+    assert not view.full_pose and result.success, result.reason
+    reached = PRESET.fk(result.q)
+    assert np.linalg.norm(reached[:3, 3] - T[:3, 3]) <= FILE_ROUND_TRIP
+    assert np.linalg.norm(reached[:3, 2] - T[:3, 2]) <= FILE_ROUND_TRIP
