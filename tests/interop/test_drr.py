@@ -116,3 +116,40 @@ def test_rendered_panorama_parallax_free_against_one_plane(ct):
     assert result.misalignment["one-plane"].min() >= ONE_PLANE_MIN_PX
     panorama, extent = result.stitch("parallax-free")
     assert np.isfinite(panorama).mean() > 0.5 and extent[1] > extent[0]
+
+
+def test_diffdrr_draws_the_bead_where_p_projects_it(ct):
+    """DiffDRR itself (when importable with its dependencies) renders with our converted pose and detector:
+    ``orientation=None, center_volume=False``, pose · diag(−1, −1, 1, 1). DiffDRR normalises densities by
+    the volume's maximum, so both volumes carry a bead (one far outside the view) to share it."""
+    torch = pytest.importorskip("torch")
+    drr_module = pytest.importorskip("diffdrr.drr", reason="DiffDRR's renderer needs its dependencies")
+    from diffdrr.data import read
+    from diffdrr.pose import RigidTransform
+    from torchio import ScalarImage
+
+    from carmkin.interop import simulators as sim
+
+    system = PRESET.replace(carm=dataclasses.replace(PRESET.carm, principal_point=(430.0, 280.0)))
+    q = np.array([0.02, 0.05, 0.08, 0.05, 0.25, -0.3])
+    T = system.fk(q)
+    iso = T[:3, 3] + system.carm.orbital_offset * T[:3, 2]
+    T_table_ct = ct.in_table("HFS", iso)
+    bead = ct.voxel_centre((np.linalg.inv(T_table_ct) @ np.r_[iso + T[:3, :3] @ [0.03, -0.02, 0.04], 1])[:3] * 1e3)[0]
+    corner = (ct.affine @ np.array([2.0, 2.0, 2.0, 1.0]))[:3]
+    K, size = drr.scaled_intrinsics(system.carm.intrinsics(), (800, 600), 0.25)
+    d = sim.diffdrr_detector(K, size, system.carm.source_to_detector * sim.MM)
+    pose = RigidTransform(torch.tensor(sim.diffdrr_pose(sim.to_millimetres(np.linalg.inv(T_table_ct) @ T)),
+                                       dtype=torch.float64)[None])
+    images = []
+    for beads in (corner, np.vstack((bead, corner))):
+        volume = ct.with_fiducials(beads)
+        subject = read(volume=ScalarImage(tensor=torch.from_numpy(volume.hu)[None], affine=volume.affine),
+                       orientation=None, center_volume=False)
+        renderer = drr_module.DRR(subject, sdd=d.sdd, height=d.height, delx=d.delx, width=d.width, dely=d.dely,
+                                  x0=d.x0, y0=d.y0).to(torch.float64)
+        with torch.no_grad():
+            images.append(renderer(pose)[0, 0].numpy())
+    bead_table = (T_table_ct @ np.r_[bead / 1e3, 1.0])[:3]
+    predicted = imaging.project(K, T, bead_table)[0]
+    assert np.linalg.norm(drr.blob_centre(images[1], images[0]) - predicted) <= FIDUCIAL_PX
