@@ -16,9 +16,12 @@ Frames (DICOM PS3.3 C.8.19.6.13.1 and PS3.17 Z / FFF.1.2):
   detector rows and Zp along its columns (left→right, bottom→top, looking towards the source). Points map
   as ``P_p = R3(Ap3) R2(Ap2) R1(Ap1) P_iso`` (PS3.17 eq. Z.2-2) with Ap1 the primary angle about Z (from −Y
   to +X positive), Ap2 the secondary angle about the rotated X (from −Y to +Z positive), Ap3 the detector
-  rotation about Yp. The matrices R1–R3 are images in the standard; we use them as PySkinDose transcribes
-  them (``R1 = [[c, s, 0], [−s, c, 0], [0, 0, 1]]``, ``R2 = [[1, 0, 0], [0, c, −s], [0, s, c]]``,
-  ``R3 = [[c, 0, −s], [0, 1, 0], [s, 0, c]]``), which agree with the text's sign rules for Ap1 and Ap2.
+  rotation about Yp. The matrices R1–R3 are printed as images in the standard and transcriptions disagree
+  in sign (PySkinDose's ``beam_class.py`` flipped R1 between versions), so R1 and R2 are derived from the
+  text's rules — the detector (−Yp) moves from −Y towards +X as Ap1 grows (LAO for HFS) and towards +Z
+  (CRA) as Ap2 grows: ``R1 = [[c, s, 0], [−s, c, 0], [0, 0, 1]]``, ``R2 = [[1, 0, 0], [0, c, −s], [0, s, c]]``.
+  The sign of Ap3 (``R3 = [[c, 0, −s], [0, 1, 0], [s, 0, c]]``, as transcribed) is not checked against the
+  standard's text here.
 - **Our source frame in positioner axes**: x = −Xp, y = −Zp, z = −Yp (z from source to detector). A DICOM
   image, viewed towards the source, is the mirror of our pinhole image: DICOM column ``c = (W − 1) − u``,
   row ``r = v``; with Ap3 = 0, an AP view of an HFS patient shows the patient's left on the image right and
