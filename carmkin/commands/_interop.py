@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from carmkin.errors import InvalidConfigurationError
+from carmkin.errors import InvalidConfigurationError, InvalidParameterError
 
 
 def add_configuration_argument(parser: argparse.ArgumentParser, flag: str = "--q-mm-deg",
@@ -36,3 +36,16 @@ def describe(system, q) -> str:
     """'name=value unit, ...' of a configuration in mm / degrees."""
     return ", ".join(f"{n}={v * 1e3 if p else math.degrees(v):.6g}{'mm' if p else '°'}"
                      for n, v, p in zip(system.joint_names, q, system.prismatic))
+
+
+def millimetres(text: str | None, flag: str) -> np.ndarray | None:
+    """Three lengths 'x,y,z' given in mm, returned in m (3,); ``None`` stays ``None``."""
+    if text is None:
+        return None
+    try:
+        values = np.array([float(v) for v in text.split(",")])
+    except ValueError as exc:
+        raise InvalidParameterError(f"{flag} must be three numbers (mm) separated by commas, got {text!r}") from exc
+    if values.shape != (3,) or not np.all(np.isfinite(values)):
+        raise InvalidParameterError(f"{flag} must be three finite numbers (mm), got {text!r}")
+    return values / 1e3

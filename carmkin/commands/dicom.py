@@ -18,7 +18,7 @@ import math
 import numpy as np
 
 from ._common import add_preset_argument, system_from_args
-from ._interop import add_configuration_argument, configuration, describe
+from ._interop import add_configuration_argument, configuration, describe, millimetres
 
 HELP = "XA / Enhanced XA geometry of a configuration, synthetic datasets, moves to a DICOM image's view"
 
@@ -36,26 +36,12 @@ def register(parser: argparse.ArgumentParser) -> None:
                         help="for an XA dataset: the isocentre in the table frame (mm; default the patient origin)")
 
 
-def _point(text: str | None, flag: str):
-    from carmkin.interop.dicom import DicomGeometryError
-
-    if text is None:
-        return None
-    try:
-        values = np.array([float(v) for v in text.split(",")]) / 1e3
-    except ValueError as exc:
-        raise DicomGeometryError(f"{flag} must be three numbers (mm) separated by commas, got {text!r}") from exc
-    if values.shape != (3,) or not np.all(np.isfinite(values)):
-        raise DicomGeometryError(f"{flag} must be three finite numbers (mm), got {text!r}")
-    return values
-
-
 def run(args: argparse.Namespace) -> int:
     from carmkin.interop import dicom
 
     system = system_from_args(args)
     q = configuration(system, args.q_mm_deg)
-    origin = _point(args.patient_origin_mm, "--patient-origin-mm")
+    origin = millimetres(args.patient_origin_mm, "--patient-origin-mm")
     print(f"preset {system.name}: q = {describe(system, q)}")
     if args.read:
         return _read(system, q, args, origin)
@@ -93,7 +79,7 @@ def _read(system, q, args, origin) -> int:
     except (OSError, pydicom.errors.InvalidDicomError) as exc:
         raise dicom_io.DicomGeometryError(f"cannot read {args.read}: {exc}") from exc
     view, result = dicom_io.moves_for_dataset(system, ds, q_current=q,
-                                              isocenter=_point(args.isocenter_mm, "--isocenter-mm"),
+                                              isocenter=millimetres(args.isocenter_mm, "--isocenter-mm"),
                                               patient_origin=origin)
     print(f"view from the {view.source}: source at {np.round(view.pose[:3, 3] * 1e3, 3)} mm (table frame), "
           f"beam direction {np.round(view.pose[:3, 2], 6)}")

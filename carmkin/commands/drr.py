@@ -18,7 +18,7 @@ import argparse
 import numpy as np
 
 from ._common import add_preset_argument, system_from_args
-from ._interop import add_configuration_argument, configuration, describe
+from ._interop import add_configuration_argument, configuration, describe, millimetres
 
 HELP = "render DRRs of the bundled chest CT; fiducial vs P; rendered panorama parallax-free vs one-plane"
 
@@ -45,12 +45,7 @@ def run(args: argparse.Namespace) -> int:
 
     system = system_from_args(args)
     q = configuration(system, args.q_mm_deg)
-    try:
-        bead = np.array([float(v) for v in args.bead_mm.split(",")]) / 1e3
-    except ValueError as exc:
-        raise drr.RenderingError(f"--bead-mm must be three numbers (mm), got {args.bead_mm!r}") from exc
-    if bead.shape != (3,):
-        raise drr.RenderingError(f"--bead-mm must be three numbers (mm), got {args.bead_mm!r}")
+    bead = millimetres(args.bead_mm, "--bead-mm")
     print(f"preset {system.name}: q = {describe(system, q)}")
     volume = drr.load_ct()
     T = system.fk(q)

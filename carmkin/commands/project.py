@@ -14,7 +14,7 @@ import argparse
 import numpy as np
 
 from ._common import add_preset_argument, system_from_args
-from ._interop import add_configuration_argument, configuration, describe
+from ._interop import add_configuration_argument, configuration, describe, millimetres
 
 HELP = "projection matrix P = K[R|t] of a configuration, simulator conventions, round-trip check"
 
@@ -32,18 +32,6 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--tolerance", type=float, default=1e-9, help="pass threshold of --check (default 1e-9)")
 
 
-def _vector(text: str, flag: str) -> np.ndarray:
-    from carmkin.imaging import ImagingError
-
-    try:
-        values = np.array([float(v) for v in text.split(",")])
-    except ValueError as exc:
-        raise ImagingError(f"{flag} must be three numbers separated by commas, got {text!r}") from exc
-    if values.shape != (3,) or not np.all(np.isfinite(values)):
-        raise ImagingError(f"{flag} must be three finite numbers, got {text!r}")
-    return values
-
-
 def run(args: argparse.Namespace) -> int:
     from carmkin import imaging
     from carmkin.interop import simulators
@@ -56,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"K (px), image {size[0]}x{size[1]} (columns x rows):\n{K}")
     patient = None
     if args.patient:
-        patient = imaging.patient_pose(args.patient, _vector(args.patient_origin_mm, "--patient-origin-mm") / 1e3)
+        patient = imaging.patient_pose(args.patient, millimetres(args.patient_origin_mm, "--patient-origin-mm"))
     P = imaging.projection_matrix(system, q, patient)
     frame = f"patient frame ({args.patient.upper()}, LPS, m)" if patient is not None else "table frame (m)"
     print(f"P = K[R|t], points of the {frame} to pixels:\n{P}")
