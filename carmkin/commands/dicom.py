@@ -73,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
 def _read(system, q, args, origin) -> int:
     from carmkin.interop import dicom_io
 
-    pydicom = dicom_io._pydicom()
+    pydicom = dicom_io.require_pydicom()
     try:
         ds = pydicom.dcmread(args.read)
     except (OSError, pydicom.errors.InvalidDicomError) as exc:

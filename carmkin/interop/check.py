@@ -11,19 +11,13 @@ import math
 import numpy as np
 
 from carmkin import analytic_ik, imaging
+from carmkin.imaging.panorama import pose_residual as pose_error
 from carmkin.imaging.projection import PATIENT_POSITIONS
 from carmkin.interop import dicom, simulators
 from carmkin.model.sampling import random_configurations, random_system
 
 #: Acceptance bound of every round trip (issue 15).
 ROUND_TRIP_TOLERANCE = 1e-9
-
-
-def pose_error(T1, T2) -> float:
-    """max(position error (m), rotation angle (rad)) between two poses."""
-    E = T1[:3, :3].T @ T2[:3, :3]
-    sin = 0.5 * np.linalg.norm([E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1]])
-    return max(float(np.linalg.norm(T1[:3, 3] - T2[:3, 3])), float(np.arctan2(sin, 0.5 * (np.trace(E) - 1.0))))
 
 
 def _relative(A, B) -> float:

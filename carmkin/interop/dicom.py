@@ -49,6 +49,7 @@ import numpy as np
 
 from carmkin.errors import CarmkinError
 from carmkin.imaging.projection import patient_pose
+from carmkin.interop.simulators import MM
 from carmkin.transforms import check_rigid_transform, inverse
 
 #: Our source axes (columns x, y, z) in positioner axes (Xp, Yp, Zp): x = −Xp, y = −Zp, z = −Yp.
@@ -56,8 +57,6 @@ SOURCE_IN_POSITIONER = np.array([[-1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, -1.0,
 
 #: Isocentre axes (columns X, Y, Z) in DH frame 2 of the chain: X = Y2, Y = −Z2, Z = −X2.
 ISOCENTER_IN_FRAME2 = np.array([[0.0, 0.0, -1.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
-
-MM = 1000.0
 
 
 class DicomGeometryError(CarmkinError):

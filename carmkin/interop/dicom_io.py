@@ -18,7 +18,7 @@ XA_SOP_CLASS = "1.2.840.10008.5.1.4.1.1.12.1"  # X-Ray Angiographic Image Storag
 ENHANCED_XA_SOP_CLASS = "1.2.840.10008.5.1.4.1.1.12.1.1"  # Enhanced XA Image Storage
 
 
-def _pydicom():
+def require_pydicom():
     try:
         import pydicom
     except ImportError as exc:  # pragma: no cover - exercised only without the extra
@@ -27,7 +27,7 @@ def _pydicom():
 
 
 def _base(sop_class: str, system):
-    pydicom = _pydicom()
+    pydicom = require_pydicom()
     from pydicom.dataset import FileMetaDataset
     from pydicom.uid import ExplicitVRLittleEndian, generate_uid
 
@@ -66,7 +66,7 @@ def write_xa(system, q, patient_position: str = "HFS", patient_origin=(0.0, 0.0,
 def write_enhanced_xa(system, q, source_to_isocenter: float | None = None, patient_position: str = "HFS"):
     """A synthetic Enhanced XA dataset of the image at ``q`` with the X-Ray Isocenter Reference System and
     the Table Position macros in its Shared Functional Groups (angles deg, positions mm)."""
-    pydicom = _pydicom()
+    pydicom = require_pydicom()
     ds = _base(ENHANCED_XA_SOP_CLASS, system)
     ds.PatientPosition = patient_position.upper()
     g = dicom.isocenter_geometry(system, q, source_to_isocenter)
