@@ -97,7 +97,6 @@ def panorama_experiment(system, volume: Volume, T_table_ct, q_reference, length:
     translated = np.repeat(T_ref[None], len(plan.aims), axis=0)
     translated[:, :3, 3] += plan.aims[:, None] * direction_table
     poses["one-plane"] = translated
-    K_full = system.carm.intrinsics()
     renderer = Renderer(system, volume, T_table_ct, scale, n_samples, device)
     K, size = renderer.K, renderer.size
     homographies = {
