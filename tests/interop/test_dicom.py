@@ -188,6 +188,7 @@ def through_a_file(ds):
 @settings(max_examples=15)
 @given(st.data())
 def test_enhanced_xa_dataset_round_trip(data):
+    pytest.importorskip("pydicom")
     from carmkin.interop import dicom_io
 
     system = data.draw(systems())
@@ -202,6 +203,7 @@ def test_enhanced_xa_dataset_round_trip(data):
 @settings(max_examples=15)
 @given(st.data())
 def test_xa_dataset_round_trip(data):
+    pytest.importorskip("pydicom")
     from carmkin.interop import dicom_io
 
     system = data.draw(systems())
@@ -229,6 +231,7 @@ def test_moves_reproduce_the_view_of_a_dicom_image():
     """An image taken after moving the orbital joint and the table (translation, lateral): its Enhanced XA
     geometry, read back, gives joints with the same view (closed form on the plain chain, QP with the
     motorized table)."""
+    pytest.importorskip("pydicom")
     from carmkin.interop import dicom_io
 
     for system in (PRESET, MOTORIZED):
@@ -245,6 +248,7 @@ def test_moves_reproduce_the_view_of_a_dicom_image():
 
 def test_moves_reproduce_the_beam_of_an_xa_image():
     """XA angles + the isocentre fix the source and the beam; the rotation about the beam is left free."""
+    pytest.importorskip("pydicom")
     from carmkin.interop import dicom_io
 
     q_now = 0.5 * (PRESET.lower + PRESET.upper)
