@@ -22,9 +22,11 @@ from .camera import (
     rotation_between,
     rotation_homography,
 )
+from .projection import intrinsics, patient_pose, pose_from_projection, projection_from_pose, projection_matrix
 
 __all__ = [
     "ImagingError", "apply_homography", "back_project", "dehomogenize", "homogeneous", "homography_between",
     "image_border", "in_image", "measure_distance", "plane_homography", "plane_in_frame", "project",
     "relative_pose", "rotation_between", "rotation_homography",
+    "intrinsics", "patient_pose", "pose_from_projection", "projection_from_pose", "projection_matrix",
 ]

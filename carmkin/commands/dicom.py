@@ -1,0 +1,93 @@
+"""DICOM XA geometry of a configuration, synthetic datasets, and the moves that give a DICOM image's view.
+
+Without --read: prints, for --q-mm-deg, the patient-based XA Positioner Primary/Secondary Angle (LAO+/RAO−,
+CRA+/CAU−) for --patient, the Enhanced XA Isocenter Reference System (positioner and table angles in deg,
+table position to isocentre in mm) and the Table Top Vertical/Longitudinal/Lateral Position (mm; in DICOM's
+terms "longitudinal" is across the table and "lateral" along it, seen by an operator beside the table).
+--write-xa / --write-enhanced FILE write synthetic datasets (geometry only). --read FILE reads a dataset's
+geometry and prints the joint (and table) moves from --q-mm-deg that reproduce its view, through the QP IK;
+XA datasets need --isocenter-mm, the point the beam passed through (table frame). Needs pydicom (the dicom
+extra) for reading and writing.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+import numpy as np
+
+from ._common import add_preset_argument, system_from_args
+from ._interop import add_configuration_argument, configuration, describe, millimetres
+
+HELP = "XA / Enhanced XA geometry of a configuration, synthetic datasets, moves to a DICOM image's view"
+
+
+def register(parser: argparse.ArgumentParser) -> None:
+    add_preset_argument(parser)
+    add_configuration_argument(parser, what="configuration (the current one with --read)")
+    parser.add_argument("--patient", default="HFS", metavar="CODE", help="DICOM patient position (default HFS)")
+    parser.add_argument("--patient-origin-mm", metavar="X,Y,Z", default="0,0,0",
+                        help="patient frame origin in the table frame (mm, default 0,0,0)")
+    parser.add_argument("--write-xa", metavar="FILE", help="write a synthetic XA dataset of the configuration")
+    parser.add_argument("--write-enhanced", metavar="FILE", help="write a synthetic Enhanced XA dataset")
+    parser.add_argument("--read", metavar="FILE", help="read a dataset and print the moves to its view")
+    parser.add_argument("--isocenter-mm", metavar="X,Y,Z",
+                        help="for an XA dataset: the isocentre in the table frame (mm; default the patient origin)")
+
+
+def run(args: argparse.Namespace) -> int:
+    from carmkin.interop import dicom
+
+    system = system_from_args(args)
+    q = configuration(system, args.q_mm_deg)
+    origin = millimetres(args.patient_origin_mm, "--patient-origin-mm")
+    print(f"preset {system.name}: q = {describe(system, q)}")
+    if args.read:
+        return _read(system, q, args, origin)
+    patient = dicom.patient_pose(args.patient, origin)
+    primary, secondary, rotation = dicom.xa_angles(system.fk(q), patient)
+    print(f"XA ({args.patient.upper()}): Positioner Primary Angle {primary:.4f}° ({'LAO' if primary >= 0 else 'RAO'}), "
+          f"Secondary Angle {secondary:.4f}° ({'CRA' if secondary >= 0 else 'CAU'}), detector rotation {rotation:.4f}°")
+    g = dicom.isocenter_geometry(system, q)
+    print(f"Isocenter Reference System: positioner {g.positioner_primary_deg:.4f}°, {g.positioner_secondary_deg:.4f}°, "
+          f"detector rotation {g.detector_rotation_deg:.4f}°; table X/Y/Z to isocentre "
+          + ", ".join(f"{v:.3f}" for v in g.table_position_mm)
+          + f" mm; table rotation {g.table_rotation_deg:.4f}°, head tilt {g.table_head_tilt_deg:.4f}°, "
+          f"cradle tilt {g.table_cradle_tilt_deg:.4f}°; source to isocentre {g.source_to_isocenter_mm:.3f} mm")
+    for name, value in dicom.table_position(system, q).items():
+        print(f"{name}: {value:.3f} mm")
+    if args.write_xa or args.write_enhanced:
+        from carmkin.interop import dicom_io
+
+        if args.write_xa:
+            dicom_io.write_xa(system, q, args.patient, origin).save_as(args.write_xa, enforce_file_format=True)
+            print(f"wrote {args.write_xa}")
+        if args.write_enhanced:
+            ds = dicom_io.write_enhanced_xa(system, q, patient_position=args.patient)
+            ds.save_as(args.write_enhanced, enforce_file_format=True)
+            print(f"wrote {args.write_enhanced}")
+    return 0
+
+
+def _read(system, q, args, origin) -> int:
+    from carmkin.interop import dicom_io
+
+    pydicom = dicom_io.require_pydicom()
+    try:
+        ds = pydicom.dcmread(args.read)
+    except (OSError, pydicom.errors.InvalidDicomError) as exc:
+        raise dicom_io.DicomGeometryError(f"cannot read {args.read}: {exc}") from exc
+    view, result = dicom_io.moves_for_dataset(system, ds, q_current=q,
+                                              isocenter=millimetres(args.isocenter_mm, "--isocenter-mm"),
+                                              patient_origin=origin)
+    print(f"view from the {view.source}: source at {np.round(view.pose[:3, 3] * 1e3, 3)} mm (table frame), "
+          f"beam direction {np.round(view.pose[:3, 2], 6)}")
+    if not result.success:
+        print(f"no valid configuration reaches this view: {result.reason}")
+        return 1
+    print(f"configuration ({result.path}): {describe(system, result.q)}")
+    moves = result.q - q
+    print("moves: " + ", ".join(f"{n} {m * 1e3 if p else math.degrees(m):+.3f}{'mm' if p else '°'}"
+                                for n, m, p in zip(system.joint_names, moves, system.prismatic)))
+    return 0

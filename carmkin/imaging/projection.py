@@ -1,0 +1,110 @@
+"""Projection matrices ``P = K [R | t]`` of a configuration, relative to the table or to a patient on it.
+
+Conventions (OpenCV, the project contract in ``DESIGN.md``): the camera frame is ``xray_source`` (origin at
+the focal spot, x along image columns, y along image rows (down), z along the principal axis towards the
+detector); pixel centres sit at integer pixel coordinates, so the image spans −0.5 … size − 0.5.
+``P`` maps homogeneous world points in metres to homogeneous pixels: ``m ~ P [X; 1]``.
+
+Patient frame: DICOM's patient-based frame (PS3.3 C.7.6.2.1.1) in metres: +x to the patient's Left,
++y Posterior, +z Head (LPS), with its origin at a point the user places in the table frame. The table
+frame 0 of the toolkit is oriented like DICOM's table coordinate system (PS3.3 C.8.19.6.13.1.3: +Xt to the
+table's left, +Yt down, +Zt to the table's head) once the table's head end is taken to be +Z0 — the one
+convention stated here. The patient's axes in the table frame for each patient position are those of
+PS3.17 FFF.1.2.2.2 ("Options for patient position on the X-Ray table"): e.g. HFS = identity.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from carmkin.imaging.camera import ImagingError, _matrix3
+from carmkin.transforms import check_rigid_transform, inverse
+
+#: Patient axes (Left, Posterior, Head) as direction cosines in the table frame, per patient position
+#: (DICOM PS3.17 FFF.1.2.2.2 table; codes of Patient Position (0018,5100)).
+PATIENT_POSITIONS: dict[str, tuple[tuple[int, int, int], tuple[int, int, int], tuple[int, int, int]]] = {
+    "HFS": ((1, 0, 0), (0, 1, 0), (0, 0, 1)),
+    "HFP": ((-1, 0, 0), (0, -1, 0), (0, 0, 1)),
+    "HFDR": ((0, -1, 0), (1, 0, 0), (0, 0, 1)),
+    "HFDL": ((0, 1, 0), (-1, 0, 0), (0, 0, 1)),
+    "FFS": ((-1, 0, 0), (0, 1, 0), (0, 0, -1)),
+    "FFP": ((1, 0, 0), (0, -1, 0), (0, 0, -1)),
+    "FFDR": ((0, -1, 0), (-1, 0, 0), (0, 0, -1)),
+    "FFDL": ((0, 1, 0), (1, 0, 0), (0, 0, -1)),
+}
+
+
+def intrinsics(system) -> tuple[np.ndarray, tuple[int, int]]:
+    """``(K, (columns, rows))``: the intrinsic matrix (3, 3) in pixels and the image size of ``system``."""
+    carm = system.carm
+    return carm.intrinsics(), (int(carm.detector_columns), int(carm.detector_rows))
+
+
+def patient_pose(position: str = "HFS", origin=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """Pose (4, 4) of the patient frame (LPS, m) in the table frame for a DICOM patient position.
+
+    ``position``: one of :data:`PATIENT_POSITIONS` (HFS, HFP, HFDR, HFDL, FFS, FFP, FFDR, FFDL);
+    ``origin`` (3,): the patient frame's origin in the table frame (m).
+    """
+    key = str(position).upper()
+    if key not in PATIENT_POSITIONS:
+        raise ImagingError(f"patient position must be one of {', '.join(PATIENT_POSITIONS)}, got {position!r}")
+    origin = np.asarray(origin, dtype=float)
+    if origin.shape != (3,) or not np.all(np.isfinite(origin)):
+        raise ImagingError(f"patient origin must be three finite coordinates (m), got {origin!r}")
+    T = np.eye(4)
+    T[:3, :3] = np.array(PATIENT_POSITIONS[key], dtype=float).T  # columns: L, P, H in the table frame
+    T[:3, 3] = origin
+    return T
+
+
+def projection_from_pose(K, T) -> np.ndarray:
+    """``P = K [Rᵀ | −Rᵀ p]`` (3, 4) for the source pose ``T`` (4, 4) in some world frame."""
+    K = _matrix3(K, "K")
+    return K @ inverse(check_rigid_transform(T, "source pose T"))[:3, :]
+
+
+def projection_matrix(system, q, patient=None) -> np.ndarray:
+    """The projection matrix (3, 4) of configuration ``q`` (nq,) taking world points (m) to pixels.
+
+    World = the table frame 0, or the patient frame when ``patient`` is given: a patient position code
+    (``"HFS"``, ...; origin at the table origin) or the (4, 4) pose of the patient frame in the table frame
+    (see :func:`patient_pose`).
+    """
+    K, _ = intrinsics(system)
+    T = system.fk(q)
+    if patient is not None:
+        T_patient = patient_pose(patient) if isinstance(patient, str) else check_rigid_transform(
+            patient, "patient pose")
+        T = inverse(T_patient) @ T
+    return projection_from_pose(K, T)
+
+
+def pose_from_projection(P) -> tuple[np.ndarray, np.ndarray]:
+    """``(K, T)`` from a projection matrix (3, 4): K (3, 3) with ``K[2, 2] = 1`` and positive focal lengths,
+    and the source pose T (4, 4) in the world frame of ``P`` (inverse of :func:`projection_from_pose`).
+
+    ``P`` may carry any non-zero scale, including a negative one. RQ decomposition (scipy) of the left
+    3x3 block, with the signs fixed so that K has a positive diagonal and R is a proper rotation.
+    """
+    from scipy.linalg import rq  # imported here: carmkin.imaging stays numpy-only on import
+
+    P = np.asarray(P, dtype=float)
+    if P.shape != (3, 4) or not np.all(np.isfinite(P)):
+        raise ImagingError(f"P must be a finite 3x4 matrix, got shape {P.shape}")
+    M = P[:, :3]
+    det = np.linalg.det(M)
+    if abs(det) < 1e-300 or not np.isfinite(det):
+        raise ImagingError("P is singular: its left 3x3 block has rank < 3 (no finite centre of projection)")
+    if det < 0:
+        P, M = -P, -M
+    K, R = rq(M)
+    signs = np.diag(np.sign(np.diag(K)))
+    K, R = K @ signs, signs @ R
+    scale = K[2, 2]
+    K = K / scale
+    t = np.linalg.solve(K, P[:, 3]) / scale
+    T = np.eye(4)
+    T[:3, :3] = R.T
+    T[:3, 3] = -R.T @ t
+    return K, T
