@@ -1,6 +1,11 @@
 """The README's tour does what its text says: its Python blocks run, and the values its comments print are
-the values the code produces. The ```console blocks of the README and docs/*.md (``$ carmkin ...`` and its
-output) print what they show."""
+the values the code produces. The ```console blocks of the README and docs/*.md print what they show.
+
+The convention for numbers quoted in the docs: a fenced block ```console whose first line is ``$ carmkin ...``
+(a fast, deterministic command, a few seconds at most), followed by what the command prints, stdout and
+stderr together, as a terminal shows them. A line ``...`` stands for any number of lines; a line ending with
+``# varies`` (rounding noise, timings; keep them rare) may print other numbers with the same words; a
+printed zero's sign and the width of runs of spaces do not count. Slower commands go in a plain ``` block."""
 
 import contextlib
 import io
