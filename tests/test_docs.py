@@ -1,12 +1,23 @@
 """The README's tour does what its text says: its Python blocks run, and the values its comments print are
-the values the code produces."""
+the values the code produces. The ```console blocks of the README and docs/*.md print what they show.
+
+The convention for numbers quoted in the docs: a fenced block ```console whose first line is ``$ carmkin ...``
+(a fast, deterministic command, a few seconds at most), followed by what the command prints, stdout and
+stderr together, as a terminal shows them. A line ``...`` stands for any number of lines; a line ending with
+``# varies`` (rounding noise, timings; keep them rare) may print other numbers with the same words; a
+printed zero's sign and the width of runs of spaces do not count. Slower commands go in a plain ``` block."""
 
 import contextlib
 import io
+import os
 import re
+import shlex
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 README = Path(__file__).resolve().parents[1] / "README.md"
 
@@ -38,3 +49,76 @@ def test_the_tour_solve_succeeds_and_reaches_the_target():
     res, system, T = namespace["res"], namespace["system"], namespace["T"]
     assert res.success and res.validity.valid
     assert np.allclose(system.fk(res.q), T, atol=1e-9)
+
+
+# --- console blocks: the numbers the docs quote are the numbers the commands print ---------------------------
+DOCS = sorted([README, *(README.parent / "docs").glob("*.md")])
+#: A line of a console block ending with this marker may print other numbers (timings, rounding noise): each
+#: number in it stands for any number; its words must still match.
+VARIES = "# varies"
+#: A line of a console block that is exactly this stands for any number of output lines (none included).
+ELISION = "..."
+NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+
+
+def console_blocks() -> list[tuple[str, str, list[str]]]:
+    """``(where, command line, expected output lines)`` of every ```console block whose first line is
+    ``$ carmkin ...`` in the README and docs/*.md."""
+    found = []
+    for path in DOCS:
+        text = path.read_text()
+        for match in re.finditer(r"```console\n(.*?)```", text, flags=re.S):
+            lines = match.group(1).splitlines()
+            if lines and lines[0].startswith("$ carmkin "):
+                where = f"{path.name}:{text.count(chr(10), 0, match.start()) + 1}"
+                found.append((where, lines[0][2:], lines[1:]))
+    return found
+
+
+def normalized(line: str) -> str:
+    """A printed zero's sign is rounding noise (``-0.000`` and ``+0.`` read as `` 0.000`` and `` 0.``), and so is
+    the width it takes in a padded column (runs of spaces read as one)."""
+    return " ".join(re.sub(r"(?<![\w.])[-+](?=0(?:\.0*)?(?![\d.]))", " ", line).split())
+
+
+def line_matches(printed: str, promised: str) -> bool:
+    printed, promised = normalized(printed), normalized(promised)
+    if not promised.endswith(VARIES):
+        return printed == promised
+    words = re.split(NUMBER, promised[:-len(VARIES)].strip())
+    return re.fullmatch(NUMBER.join(re.escape(w) for w in words), printed) is not None
+
+
+def output_matches(printed: list[str], promised: list[str]) -> bool:
+    """Line by line; an :data:`ELISION` line in ``promised`` skips any number of printed lines."""
+    if not promised:
+        return not printed
+    if promised[0] == ELISION:
+        return any(output_matches(printed[k:], promised[1:]) for k in range(len(printed) + 1))
+    return bool(printed) and line_matches(printed[0], promised[0]) and output_matches(printed[1:], promised[1:])
+
+
+def test_the_console_convention_reads_as_documented():
+    assert line_matches("rank 5; det J +1.6e-16", f"rank 5; det J -3e-17  {VARIES}")
+    assert not line_matches("rank 5; det K +1.6e-16", f"rank 5; det J -3e-17  {VARIES}")
+    assert line_matches("orbital=-0.000°, d=[ 0. -0.]", "orbital=+0.000°, d=[ 0.  0.]")
+    assert not line_matches("orbital=-0.001°", "orbital=+0.001°")
+    assert not line_matches("x -0.4937", "x 0.4937") and not line_matches("e-06", "e06")
+    assert output_matches(["a", "b", "c", "d"], ["a", ELISION, "d"]) and output_matches(["a"], ["a", ELISION])
+    assert not output_matches(["a", "b"], ["a"]) and not output_matches(["a"], ["a", "b"])
+
+
+@pytest.mark.parametrize("where, command, promised", console_blocks(), ids=[b[0] for b in console_blocks()])
+def test_console_blocks_print_what_the_docs_show(where, command, promised, tmp_path):
+    """Runs ``$ carmkin ...`` of a ```console block in a fresh folder, with this interpreter's carmkin;
+    stdout and stderr together, as a terminal shows them (progress bars off)."""
+    env = {**os.environ, "TQDM_DISABLE": "1", "COLUMNS": "120"}
+    done = subprocess.run([sys.executable, "-m", "carmkin.cli", *shlex.split(command)[1:]], cwd=tmp_path, env=env,
+                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=120)
+    printed = done.stdout.splitlines()
+    assert output_matches(printed, promised), (
+        f"{where}: `{command}` printed\n" + "\n".join(printed) + "\n\nbut the docs show\n" + "\n".join(promised))
+
+
+def test_there_are_console_blocks_in_the_docs():
+    assert len(console_blocks()) >= 6

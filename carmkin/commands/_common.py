@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +21,7 @@ import numpy as np
 from carmkin.errors import CarmkinError, InvalidConfigurationError, InvalidPoseError, PresetError
 from carmkin.model.system import CArmSystem
 from carmkin.presets import list_presets, load_preset
+from carmkin.transforms import check_rigid_transform, nearest_rigid
 
 DEFAULT_PRESET = "siremobile-iso-c3d"
 #: Factors from SI to the command line's units: m -> mm, rad -> degrees.
@@ -153,21 +155,51 @@ def pose_from_mm_deg(position_mm, rotation_vector_deg) -> np.ndarray:
 
 
 def read_pose(path: str, option: str) -> np.ndarray:
-    """The 4x4 pose (m) in a file, translation in mm; :class:`InvalidPoseError` naming ``option`` otherwise.
+    """The rigid 4x4 pose (m) in a file, translation in mm; :class:`InvalidPoseError` naming ``option`` otherwise.
 
     ``*.json``: ``{"position_mm": [x, y, z], "rotation_vector_deg": [rx, ry, rz]}`` or ``{"matrix_mm": 4x4}``;
-    any other file: a 4x4 matrix as text (``numpy.loadtxt``). The rigidity check is the caller's.
+    any other file: a 4x4 matrix as text (``numpy.loadtxt``). A nearly rigid matrix (typed with 4 decimals,
+    written in float32) is projected onto the nearest rigid transform, with a note on stderr
+    (:func:`rigid_pose`).
     """
     if Path(path).suffix.lower() == ".json":
-        return _read_json_pose(path, option)
+        T = _read_json_pose(path, option)
+    else:
+        try:
+            T = np.loadtxt(path, dtype=float, ndmin=2)
+        except (OSError, ValueError) as exc:
+            raise InvalidPoseError(f"{option} {path}: cannot read a 4x4 matrix ({exc})") from None
+        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+            raise InvalidPoseError(f"{option} {path}: expected a 4x4 matrix of finite numbers, got shape {T.shape}")
+        T[:3, 3] /= MM_PER_M
+    return rigid_pose(T, f"{option} {path}")
+
+
+def rigid_pose(T: np.ndarray, name: str) -> np.ndarray:
+    """``T`` (4x4, m) unchanged when it is rigid to :data:`carmkin.transforms.RIGID_TOLERANCE`; otherwise its
+    nearest rigid transform (:func:`carmkin.transforms.nearest_rigid`), with one line on stderr saying how far
+    that moved it (degrees, mm). :class:`InvalidPoseError` naming ``name`` and the threshold beyond
+    :data:`carmkin.transforms.NEARLY_RIGID_TOLERANCE` (or for a reflection).
+    """
     try:
-        T = np.loadtxt(path, dtype=float, ndmin=2)
-    except (OSError, ValueError) as exc:
-        raise InvalidPoseError(f"{option} {path}: cannot read a 4x4 matrix ({exc})") from None
-    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-        raise InvalidPoseError(f"{option} {path}: expected a 4x4 matrix of finite numbers, got shape {T.shape}")
-    T[:3, 3] /= MM_PER_M
-    return T
+        return check_rigid_transform(T, name)
+    except InvalidPoseError:
+        pass
+    T_rigid, _ = nearest_rigid(T, name)
+    print(f"note: {name}: projected the pose onto the nearest rigid transform: rotation moved by "
+          f"{axis_change_deg(T, T_rigid):.2g}°, translation by "
+          f"{np.linalg.norm(T_rigid[:3, 3] - T[:3, 3]) * MM_PER_M:.2g} mm", file=sys.stderr)
+    return T_rigid
+
+
+def axis_change_deg(T: np.ndarray, T_rigid: np.ndarray) -> float:
+    """Largest angle (degrees) between a column of ``T``'s rotation block and the same column of ``T_rigid``'s:
+    how far the projection turned the frame's axes (the blocks are not both rotations, so the angle of
+    ``Rᵀ R_rigid`` would not measure it)."""
+    a, b = T[:3, :3], T_rigid[:3, :3]
+    sines = np.linalg.norm(np.cross(a, b, axis=0), axis=0)
+    cosines = np.einsum("ij,ij->j", a, b)
+    return float(np.degrees(np.arctan2(sines, cosines)).max())
 
 
 def _read_json_pose(path: str, option: str) -> np.ndarray:

@@ -5,7 +5,10 @@ The pose is the X-ray source frame (origin at the source centre, Z = principal a
                           R = exp([r]×)); write --pose=-100,... when the first value is negative
   --pose-file FILE        FILE.json: {"position_mm": [x, y, z], "rotation_vector_deg": [rx, ry, rz]}
                           or {"matrix_mm": 4x4 homogeneous matrix with its translation in mm};
-                          any other file: the 4x4 matrix as text (translation in mm)
+                          any other file: the 4x4 matrix as text (translation in mm); a matrix that
+                          is nearly rigid (typed with 4 decimals, stored in float32) is projected onto
+                          the nearest rigid transform with a one-line note on stderr, one farther than
+                          ||R^T R - I|| = 1e-3 is refused
 --current (one value per joint, mm for prismatic and degrees for revolute joints) is the current
 configuration used to choose between the two solutions (§4.4.2; default: zero configuration). Prints both
 solutions in mm/degrees with their status and their §4.4.3 validity (collisions, table in the cone), and

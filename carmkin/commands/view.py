@@ -48,7 +48,7 @@ def register(parser: argparse.ArgumentParser) -> None:
                         help="target configuration: drawn as a ghost, move animated")
     parser.add_argument("--target-pose", metavar="FILE",
                         help="pose of xray_source in the table frame, translation in mm (4x4 text matrix, or JSON "
-                        "as for carmkin ik --pose-file): ghost cone")
+                        "as for carmkin ik --pose-file; a nearly rigid one is projected, with a note): ghost cone")
     parser.add_argument("--no-animate", action="store_true", help="with --target: only the ghost, no animation")
     parser.add_argument("--frames", type=integer(2), default=40, help="frames of the animated move (default 40)")
     parser.add_argument("--fps", type=number(0.0, open_minimum=True), default=20.0, help="frames per second of the move (default 20)")

@@ -3,6 +3,8 @@ joint/pose parser and printer, validated options, output paths, exit codes, neve
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import math
 import subprocess
@@ -10,10 +12,11 @@ import sys
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 import carmkin
+import strategies
 from carmkin.cli import main
 from carmkin.commands import _common
 from carmkin.commands._common import (
@@ -41,6 +44,17 @@ def cli(argv, capsys) -> tuple[int, str, str]:
         code = exc.code
     out, err = capsys.readouterr()
     return code, out, err
+
+
+def cli_captured(argv) -> tuple[int, str, str]:
+    """:func:`cli` without pytest's capsys (for hypothesis tests, whose examples share one test call)."""
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            code = main([str(a) for a in argv])
+        except SystemExit as exc:
+            code = exc.code
+    return code, out.getvalue(), err.getvalue()
 
 
 def assert_one_line_error(err: str, *words: str) -> None:
@@ -205,6 +219,90 @@ def test_bad_pose_files_are_one_line_errors(name, content, words, tmp_path, caps
     code, _, err = cli(["ik", "--pose-file", path], capsys)
     assert code == 2
     assert_one_line_error(err, *words)
+
+
+# A pose as a user hands it over: typed with 4 decimals (||R^T R - I|| ~ 1e-4) or stored in float32 (~1e-7).
+ROUNDINGS = {"4 decimals": lambda M: np.round(M, 4), "float32": lambda M: M.astype(np.float32).astype(float)}
+
+
+def write_pose(path, T_mm) -> None:
+    """``T_mm`` (4x4, translation in mm) as a text matrix or a JSON ``matrix_mm`` file, digits as given."""
+    if path.suffix == ".json":
+        path.write_text(json.dumps({"matrix_mm": T_mm.tolist()}))
+    else:
+        np.savetxt(path, T_mm, fmt="%.17g")
+
+
+def si_joints(system, joints: dict) -> np.ndarray:
+    """q (m, rad) from the ``{"<name>_<unit>": value}`` of ``carmkin ik --json`` (mm, degrees)."""
+    return np.array([joints[f"{n}_mm"] / 1000.0 if p else math.radians(joints[f"{n}_deg"])
+                     for n, p in zip(system.joint_names, system.prismatic)])
+
+
+@settings(max_examples=40)
+@given(q=strategies.configurations(), rounding=st.sampled_from(sorted(ROUNDINGS)),
+       suffix=st.sampled_from([".txt", ".json"]))
+def test_a_rounded_pose_file_is_projected_noted_in_one_line_and_solved(tmp_path_factory, q, rounding, suffix):
+    T_mm = PLAIN.fk(q)
+    T_mm[:3, 3] *= 1000.0
+    given_mm = ROUNDINGS[rounding](T_mm)
+    R = given_mm[:3, :3]
+    assume(np.linalg.norm(R.T @ R - np.eye(3)) > 1e-9)  # not already rigid (float32 of an axis-aligned pose)
+    path = tmp_path_factory.mktemp("pose") / f"rounded{suffix}"
+    write_pose(path, given_mm)
+    code, out, err = cli_captured(["ik", "--pose-file", path, "--json"])
+    assert code in (0, 1), err  # solved: within the ranges or not (a joint drawn on its limit may round out)
+    assert_one_line_error(err, "--pose-file", "projected the pose onto the nearest rigid transform", "°", "mm")
+    chosen = json.loads(out)["branches"][json.loads(out)["chosen"]]
+    T = PLAIN.fk(si_joints(PLAIN, chosen["joints"]))
+    np.testing.assert_allclose(T[:3, 3] * 1000.0, given_mm[:3, 3], atol=1e-6)  # the translation is kept
+    np.testing.assert_allclose(T[:3, :3], R, atol=2e-4)  # the rotation moved by the rounding only
+
+
+def test_the_note_gives_the_turn_of_the_axes_in_degrees_and_the_translation_change_in_mm(tmp_path, capsys):
+    # R (I + S) with S symmetric has the polar factor R: the projection gives back R, turning the first two
+    # axes by atan(eps) (e0 + eps e1 against e0), the third not at all; the translation stays.
+    eps = 1e-4
+    T_mm = PLAIN.fk(mid(PLAIN))
+    T_mm[:3, 3] *= 1000.0
+    S = np.zeros((3, 3))
+    S[0, 1] = S[1, 0] = eps
+    T_mm[:3, :3] = T_mm[:3, :3] @ (np.eye(3) + S)
+    write_pose(tmp_path / "p.txt", T_mm)
+    code, _, err = cli(["ik", "--pose-file", tmp_path / "p.txt"], capsys)
+    assert code in (0, 1)
+    assert_one_line_error(err, f"rotation moved by {math.degrees(math.atan(eps)):.2g}°", "translation by 0 mm")
+
+
+def test_an_exactly_rigid_pose_file_is_used_as_given_without_a_note(tmp_path, capsys):
+    T_mm = PLAIN.fk(mid(PLAIN))
+    T_mm[:3, 3] *= 1000.0
+    write_pose(tmp_path / "p.txt", T_mm)
+    code, _, err = cli(["ik", "--pose-file", tmp_path / "p.txt"], capsys)
+    assert code == 0 and err == ""
+
+
+@pytest.mark.parametrize("option", ["--pose-file", "--target-pose"])
+def test_a_clearly_non_rigid_pose_is_refused_in_one_line_naming_the_option_and_the_threshold(option, tmp_path, capsys):
+    from carmkin.transforms import NEARLY_RIGID_TOLERANCE
+
+    T_mm = PLAIN.fk(mid(PLAIN))
+    T_mm[:3, 3] *= 1000.0
+    T_mm[0, :3] *= 1.01  # a row stretched by 1 %: ||R^T R - I|| ~ 2e-2
+    write_pose(tmp_path / "p.txt", T_mm)
+    command = ["ik", "--pose-file"] if option == "--pose-file" else ["view", "--html", tmp_path / "v.html", option]
+    code, out, err = cli([*command, tmp_path / "p.txt"], capsys)
+    assert code == 2 and out == ""
+    assert_one_line_error(err, option, f"{NEARLY_RIGID_TOLERANCE:g}")
+
+
+def test_the_viewer_projects_a_rounded_target_pose(tmp_path, capsys):
+    T_mm = PLAIN.fk(mid(PLAIN) + 0.1)  # not axis-aligned, so that rounding changes it
+    T_mm[:3, 3] *= 1000.0
+    write_pose(tmp_path / "p.txt", np.round(T_mm, 4))
+    code, out, err = cli(["view", "--target-pose", tmp_path / "p.txt", "--html", tmp_path / "v.html"], capsys)
+    assert code == 0 and "wrote" in out
+    assert_one_line_error(err, "--target-pose", "projected the pose onto the nearest rigid transform")
 
 
 def test_missing_pose_file_is_a_one_line_error(tmp_path, capsys):
