@@ -26,6 +26,10 @@ from carmkin.errors import CarmkinError, InvalidParameterError
 #: finite, so no overflow warning can leak. Geometry parameters have tighter bounds
 #: (:mod:`carmkin.model.bounds`).
 MAGNITUDE_LIMIT = 1e6
+#: Largest |joint value| (m or rad) accepted: only an overflow guard (squares stay finite). A joint value is
+#: not bounded physically, because the IK's branches near a singular pose legitimately grow as 1/distance
+#: (4e6 m at 1e-7 from case (c)) and must still be evaluated (FK, validity) to be reported out of range.
+JOINT_VALUE_LIMIT = 1e150
 
 
 def _describe(value) -> str:

@@ -28,7 +28,7 @@ import numpy as np
 
 from carmkin.errors import InvalidConfigurationError, InvalidParameterError
 from carmkin.transforms import dh_matrix, rot_x, rot_y, translation
-from carmkin.validation import real_array
+from carmkin.validation import JOINT_VALUE_LIMIT, real_array
 
 from .params import CARM_JOINT_NAMES, JOINT_NAMES, PRISMATIC, CArmGeometry, TableSetup
 
@@ -98,9 +98,9 @@ def check_configuration(q, n_joints: int = 6, name: str = "q") -> np.ndarray:
 
     The one joint-vector check of the library: :class:`~carmkin.errors.InvalidConfigurationError` naming
     ``name`` for a non-numeric, boolean or complex value, a wrong shape, NaN, Inf or a magnitude beyond
-    :data:`~carmkin.validation.MAGNITUDE_LIMIT` (see :func:`carmkin.validation.real_array`).
+    :data:`~carmkin.validation.JOINT_VALUE_LIMIT` (see :func:`carmkin.validation.real_array`).
     """
-    q = real_array(q, name, error=InvalidConfigurationError, unit="m, rad")
+    q = real_array(q, name, error=InvalidConfigurationError, limit=JOINT_VALUE_LIMIT, unit="m, rad")
     if q.ndim not in (1, 2) or q.shape[-1] != n_joints:
         raise InvalidConfigurationError(f"{name} must have shape ({n_joints},) or (N, {n_joints}), got {q.shape}")
     return q

@@ -17,7 +17,7 @@ from typing import Sequence
 import numpy as np
 
 from carmkin.errors import InvalidConfigurationError
-from carmkin.validation import real_array, real_scalar
+from carmkin.validation import JOINT_VALUE_LIMIT, real_array, real_scalar
 from carmkin.transforms import segment_hits_box
 
 from .collision import CollisionScene, Obstacle, link_of
@@ -130,7 +130,7 @@ def check(
     (one forward-kinematics pass per configuration).
     """
     model = system.pinocchio()[0]
-    q = real_array(q, "q", (model.nq,), error=InvalidConfigurationError, unit="m, rad")
+    q = real_array(q, "q", (model.nq,), error=InvalidConfigurationError, limit=JOINT_VALUE_LIMIT, unit="m, rad")
     margin = real_scalar(margin, "margin", error=InvalidConfigurationError, low=0.0, unit="m")
     if scene is not None and obstacles:
         raise InvalidConfigurationError("give the obstacles either in the scene or as obstacles, not both")
