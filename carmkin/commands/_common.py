@@ -18,7 +18,12 @@ from pathlib import Path
 
 import numpy as np
 
-from carmkin.errors import CarmkinError, InvalidConfigurationError, InvalidPoseError, PresetError
+from carmkin.errors import (
+    CarmkinError,
+    InvalidConfigurationError,
+    InvalidPoseError,
+    PresetError,
+)
 from carmkin.model.system import CArmSystem
 from carmkin.presets import list_presets, load_preset
 from carmkin.transforms import check_rigid_transform, nearest_rigid

@@ -17,7 +17,7 @@ import argparse
 
 import numpy as np
 
-from ._common import add_preset_argument, system_from_args
+from ._common import add_preset_argument, integer, number, system_from_args
 from ._interop import add_configuration_argument, configuration, describe, millimetres
 
 HELP = "render DRRs of the bundled chest CT; fiducial vs P; rendered panorama parallax-free vs one-plane"
@@ -26,16 +26,16 @@ HELP = "render DRRs of the bundled chest CT; fiducial vs P; rendered panorama pa
 def register(parser: argparse.ArgumentParser) -> None:
     add_preset_argument(parser)
     add_configuration_argument(parser)
-    parser.add_argument("--scale", type=float, default=0.25, help="detector binning (default 0.25)")
-    parser.add_argument("--samples", type=int, default=400, help="samples per ray inside the CT (default 400)")
+    parser.add_argument("--scale", type=number(0, 4, open_minimum=True), default=0.25, help="detector binning (default 0.25)")
+    parser.add_argument("--samples", type=integer(1, 100_000), default=400, help="samples per ray inside the CT (default 400)")
     parser.add_argument("--device", default=None, help="torch device (default: cuda when available, else cpu)")
     parser.add_argument("--bead-mm", default="20,-15,30", metavar="X,Y,Z",
                         help="bead offset from the isocentre in the source frame (mm, default 20,-15,30)")
     parser.add_argument("--png", metavar="OUT.png", help="write the DRR (and the panoramas) to this PNG")
-    parser.add_argument("--panorama-mm", type=float, default=0.0, metavar="L",
+    parser.add_argument("--panorama-mm", type=number(0, 2000, unit="mm"), default=0.0, metavar="L",
                         help="also plan, render and stitch a panorama of this length (mm)")
-    parser.add_argument("--overlap", type=float, default=0.4, help="panorama overlap fraction (default 0.4)")
-    parser.add_argument("--bead-height-mm", type=float, default=120.0,
+    parser.add_argument("--overlap", type=number(0, 1, open_maximum=True), default=0.4, help="panorama overlap fraction (default 0.4)")
+    parser.add_argument("--bead-height-mm", type=number(-1000, 1000, unit="mm"), default=120.0,
                         help="panorama beads: height above the planning plane (mm, default 120)")
 
 

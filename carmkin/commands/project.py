@@ -13,7 +13,7 @@ import argparse
 
 import numpy as np
 
-from ._common import add_preset_argument, system_from_args
+from ._common import add_preset_argument, integer, number, system_from_args
 from ._interop import add_configuration_argument, configuration, describe, millimetres
 
 HELP = "projection matrix P = K[R|t] of a configuration, simulator conventions, round-trip check"
@@ -26,10 +26,10 @@ def register(parser: argparse.ArgumentParser) -> None:
                         "position (HFS, HFP, HFDR, HFDL, FFS, FFP, FFDR, FFDL)")
     parser.add_argument("--patient-origin-mm", metavar="X,Y,Z", default="0,0,0",
                         help="patient frame origin in the table frame (mm, default 0,0,0)")
-    parser.add_argument("--check", type=int, default=0, metavar="N",
+    parser.add_argument("--check", type=integer(0), default=0, metavar="N",
                         help="run the round trips on N random non-isocentric systems")
-    parser.add_argument("--seed", type=int, default=0, help="random seed of --check (default 0)")
-    parser.add_argument("--tolerance", type=float, default=1e-9, help="pass threshold of --check (default 1e-9)")
+    parser.add_argument("--seed", type=integer(0), default=0, help="random seed of --check (default 0)")
+    parser.add_argument("--tolerance", type=number(0, open_minimum=True), default=1e-9, help="pass threshold of --check (default 1e-9)")
 
 
 def run(args: argparse.Namespace) -> int:

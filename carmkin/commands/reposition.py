@@ -22,7 +22,7 @@ import argparse
 import math
 import sys
 
-from ._common import add_preset_argument, system_from_args
+from ._common import add_preset_argument, integer, number, system_from_args
 
 HELP = "simulate radiation-free repositioning: guidance steps, the §4.6.2 experiment, table calibration"
 #: ``experiment`` exits 1 below this fraction of repositioned tasks (issue 14's acceptance).
@@ -31,18 +31,18 @@ MIN_SUCCESS = 0.99
 
 def _add_noise(parser: argparse.ArgumentParser) -> None:
     add_preset_argument(parser)
-    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    parser.add_argument("--corner-noise-px", type=float, default=0.2,
+    parser.add_argument("--seed", type=integer(0), default=0, help="random seed (default 0)")
+    parser.add_argument("--corner-noise-px", type=number(0, 100, unit="px"), default=0.2,
                         help="σ of the Gaussian noise on each detected corner, px (default 0.2)")
-    parser.add_argument("--threshold-mm", type=float, default=2.0,
+    parser.add_argument("--threshold-mm", type=number(0, open_minimum=True, unit="mm"), default=2.0,
                         help="stop when every prismatic joint's remaining move is below this, mm (default 2)")
-    parser.add_argument("--threshold-deg", type=float, default=0.5,
+    parser.add_argument("--threshold-deg", type=number(0, open_minimum=True, unit="deg"), default=0.5,
                         help="stop when every revolute joint's remaining move is below this, deg (default 0.5)")
-    parser.add_argument("--operator-relative", type=float, default=0.1,
+    parser.add_argument("--operator-relative", type=number(0, 1), default=0.1,
                         help="σ of the operator's relative error on each move, fraction (default 0.1)")
-    parser.add_argument("--operator-mm", type=float, default=1.0,
+    parser.add_argument("--operator-mm", type=number(0, 1000, unit="mm"), default=1.0,
                         help="σ of the operator's absolute error on prismatic moves, mm (default 1)")
-    parser.add_argument("--operator-deg", type=float, default=0.2,
+    parser.add_argument("--operator-deg", type=number(0, 180, unit="deg"), default=0.2,
                         help="σ of the operator's absolute error on revolute moves, deg (default 0.2)")
 
 
@@ -54,8 +54,8 @@ def register(parser: argparse.ArgumentParser) -> None:
     experiment = sub.add_parser("experiment", help="the §4.6.2 experiment table beside the seed's numbers",
                                 description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     _add_noise(experiment)
-    experiment.add_argument("--tasks", type=int, default=100, help="repositioning tasks (default 100; seed: 10)")
-    experiment.add_argument("--sensitivity-tasks", type=int, default=0,
+    experiment.add_argument("--tasks", type=integer(1), default=100, help="repositioning tasks (default 100; seed: 10)")
+    experiment.add_argument("--sensitivity-tasks", type=integer(0), default=0,
                             help="also print the sensitivity table with this many tasks per row (default 0: no)")
     calibration = sub.add_parser("calibration", help="calibration error vs noise and number of positions",
                                  description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -63,11 +63,11 @@ def register(parser: argparse.ArgumentParser) -> None:
                              help="σ of the camera-position noise, mm, comma-separated (default 0.1,0.2,0.5,1)")
     calibration.add_argument("--positions", default="3,6,9,12",
                              help="numbers of positions, comma-separated (default 3,6,9,12)")
-    calibration.add_argument("--span-mm", type=float, default=400.0,
+    calibration.add_argument("--span-mm", type=number(0, 10_000, open_minimum=True, unit="mm"), default=400.0,
                              help="longest move along each table axis, mm (default 400)")
-    calibration.add_argument("--trials", type=int, default=200, help="random rotations per cell (default 200)")
+    calibration.add_argument("--trials", type=integer(1), default=200, help="random rotations per cell (default 200)")
     calibration.add_argument("--method", choices=("svd", "lines"), default="svd", help="estimator (default svd)")
-    calibration.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    calibration.add_argument("--seed", type=integer(0), default=0, help="random seed (default 0)")
 
 
 def _config(args):
@@ -133,9 +133,6 @@ def _simulate(args) -> int:
 def _experiment(args) -> int:
     from carmkin.reposition import experiment as ex
 
-    if args.tasks < 1 or args.sensitivity_tasks < 0:
-        raise ex.SimulationError(f"--tasks must be >= 1 and --sensitivity-tasks >= 0, got {args.tasks}, "
-                                 f"{args.sensitivity_tasks}")
     system = system_from_args(args)
     config = _config(args)
     stats = ex.summary(ex.run_experiment(system, config, args.tasks, args.seed))

@@ -25,14 +25,19 @@ def test_experiment_and_calibration_tables(capsys):
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["reposition", "simulate", "--corner-noise-px", "-1"], "corner noise"),
-    (["reposition", "simulate", "--threshold-mm", "0"], "translation_threshold"),
+    (["reposition", "simulate", "--corner-noise-px", "-1"], "--corner-noise-px"),
+    (["reposition", "simulate", "--threshold-mm", "0"], "--threshold-mm"),
+    (["reposition", "simulate", "--seed", "-3"], "--seed"),
     (["reposition", "experiment", "--tasks", "0"], "--tasks"),
     (["reposition", "calibration", "--positions", "a,b"], "--positions"),
     (["reposition", "calibration", "--positions", "2"], "positions must be >= 3"),
 ])
 def test_bad_input_exits_2_with_a_message(argv, message, capsys):
-    assert main(argv) == 2
+    try:
+        code = main(argv)
+    except SystemExit as exc:  # argparse refuses an option's value before the command runs
+        code = exc.code
+    assert code == 2
     err = capsys.readouterr().err
     assert message in err and "Traceback" not in err
 
