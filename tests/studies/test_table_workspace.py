@@ -80,11 +80,11 @@ def test_nested_models_are_proper_subsets():
 
 
 def test_worker_processes_and_nested_rows_give_the_answers_of_one_process():
-    """The speed-ups change no answer: two worker processes and skipping poses reached by a nested model
-    give, pose by pose, what one process solving every row gives."""
+    """The speed-ups change no answer: the reach bound, two worker processes and skipping poses reached by a
+    nested model give, pose by pose, what one process solving every pose of every row gives."""
     kwargs = dict(n=8, seed=5, random_seeds=1)
-    qs_one, one = tw.run_study(MOTORIZED, workers=1, nested=False, **kwargs)
-    qs_two, two = tw.run_study(MOTORIZED, workers=2, nested=True, **kwargs)
+    qs_one, one = tw.run_study(MOTORIZED, workers=1, nested=False, bound=False, **kwargs)
+    qs_two, two = tw.run_study(MOTORIZED, workers=2, nested=True, bound=True, **kwargs)
     assert np.array_equal(qs_one, qs_two)
     assert [r.model for r in one] == [r.model for r in two] == list(tw.MODELS)
     for a, b in zip(one, two):
