@@ -188,8 +188,7 @@ def run_study(system: CArmSystem, models=tuple(MODELS), n: int = 200, seed: int 
     ``models``, reached it: that configuration, the extra joints held at zero, is valid for the larger model
     too (same system, same acceptance rule). ``workers`` > 1 solves the poses of a row in that many
     processes (default :func:`default_workers`); every pose's solve depends only on the pose and its own
-    ``rng_seed`` (seed + k),
-    so the answers are those of one process. ``ModelReach.seconds`` is wall time.
+    ``rng_seed`` (seed + k), so the answers are those of one process. ``ModelReach.seconds`` is wall time.
     """
     unknown = set(models) - set(MODELS)
     if unknown:
