@@ -12,7 +12,8 @@
 2. ``carmkin workspace --table-dofs compare`` (:func:`carmkin.studies.table_workspace.run_study`, all four
    models, 300 poses, seed 0): wall and CPU time (all processes) and the reachable fractions, as run now
    (misses proved by the reach bound and nested rows skipped, worker processes) and, in the same run, as
-   before (one process, every pose of every row solved);
+   before (one process, every pose of every row solved: the previous algorithm, on today's faster collision
+   queries, so the ratio understates the gain over the 150-170 s of issue 12 / ~29 s CPU before this change);
    the fractions must be equal.
 
     python benchmarks/bench_table_ik.py            # 500 targets per preset + the 300-pose study
