@@ -65,14 +65,15 @@ def build_step(state: KinematicState, tasks: Sequence, limits: JointLimits,
         if rows is not None:
             G_rows.append(rows[0])
             h_rows.append(rows[1])
-    H[np.diag_indices(nv)] += (options.damping + options.error_damping * energy) * joint_weights
+    H.flat[:: nv + 1] += (options.damping + options.error_damping * energy) * joint_weights  # the diagonal
     if avoidance is not None:
         rows = avoidance.inequalities(state)
         if rows is not None:
             G_rows.append(rows[0])
             h_rows.append(rows[1])
-    G = np.vstack(G_rows) if G_rows else None
-    h = np.concatenate(h_rows) if h_rows else None
+    # one block (the usual case) as it is: stacking copies cost as much as building the rows
+    G = (G_rows[0] if len(G_rows) == 1 else np.vstack(G_rows)) if G_rows else None
+    h = (h_rows[0] if len(h_rows) == 1 else np.concatenate(h_rows)) if h_rows else None
     lb, ub = limits.bounds(state.q)
     return StepQP(H, g, G, h, lb, ub, energy)
 

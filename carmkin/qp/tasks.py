@@ -102,7 +102,22 @@ class PoseTask(FrameTask):
         return TaskErrors(position, angle, position <= position_tolerance and angle <= angle_tolerance)
 
 
-class AxisTask(FrameTask):
+class FrameAxisTask(FrameTask):
+    """Base class of the tasks on one ``axis`` of the frame (0 X, 1 Y, 2 Z: the principal axis) with a
+    target given to ``set_target`` (one validation of the axis for :class:`AxisTask` and :class:`AimTask`)."""
+
+    def __init__(self, model: pin.Model, frame: str, target: tuple, axis: int, weight: float) -> None:
+        super().__init__(model, frame, weight)
+        if axis not in (0, 1, 2):
+            raise TaskError(f"axis must be 0 (X), 1 (Y) or 2 (Z), got {axis!r}")
+        self.axis = axis
+        self.set_target(*target)
+
+    def set_target(self, *target) -> None:
+        raise NotImplementedError
+
+
+class AxisTask(FrameAxisTask):
     """Position of ``frame`` and direction of its ``axis`` (default Z, the principal axis); roll free.
 
     The 5-DOF aim of §4.6.1: ``position`` (m) and unit ``direction`` in the root frame. Residual
@@ -112,11 +127,7 @@ class AxisTask(FrameTask):
     dim = 6
 
     def __init__(self, model, frame, position, direction, axis: int = 2, weight: float = 1.0) -> None:
-        super().__init__(model, frame, weight)
-        if axis not in (0, 1, 2):
-            raise TaskError(f"axis must be 0 (X), 1 (Y) or 2 (Z), got {axis!r}")
-        self.axis = axis
-        self.set_target(position, direction)
+        super().__init__(model, frame, (position, direction), axis, weight)
 
     def set_target(self, position, direction) -> None:
         """Replace the target position (m) and direction (normalised here; zero is an error)."""
@@ -140,7 +151,7 @@ class AxisTask(FrameTask):
         return TaskErrors(position, angle, position <= position_tolerance and angle <= angle_tolerance)
 
 
-class AimTask(FrameTask):
+class AimTask(FrameAxisTask):
     """The frame's ``axis`` (default Z, the principal axis) passes through ``point``, at a distance along
     the axis between ``distance_range[0]`` and ``distance_range[1]`` (m); direction and roll are free.
 
@@ -151,11 +162,7 @@ class AimTask(FrameTask):
     dim = 3
 
     def __init__(self, model, frame, point, distance_range, axis: int = 2, weight: float = 1.0) -> None:
-        super().__init__(model, frame, weight)
-        if axis not in (0, 1, 2):
-            raise TaskError(f"axis must be 0 (X), 1 (Y) or 2 (Z), got {axis!r}")
-        self.axis = axis
-        self.set_target(point, distance_range)
+        super().__init__(model, frame, (point, distance_range), axis, weight)
 
     def set_target(self, point, distance_range) -> None:
         """Replace the target point (m) and the distance range (m, lower <= upper)."""

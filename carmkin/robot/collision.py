@@ -179,7 +179,9 @@ class CollisionScene:
         self.geometry_data = pin.GeometryData(self.geometry_model)
         for request in self.geometry_data.distanceRequests:
             request.enable_signed_distance = True
-        self._results = self.geometry_data.distanceResults
+        # One Python handle per result, taken once: they stay live views of geometry_data's results, and
+        # iterating the C++ vector afresh at every query costs ~8x the reads themselves (29 pairs: 60 vs 7 µs).
+        self._results = list(self.geometry_data.distanceResults)
         objects = self.geometry_model.geometryObjects
         pair_objects = [(objects[p.first], objects[p.second]) for p in self.geometry_model.collisionPairs]
         self.joints = np.array([[o1.parentJoint, o2.parentJoint] for o1, o2 in pair_objects], dtype=int).reshape(-1, 2)

@@ -14,11 +14,19 @@ only the model's joints free (the single-axis closed form where d0 is free, then
 from mid-range with held joints 0 and from ``random_seeds`` uniform draws). For models with table DOFs the QP is a local method, so
 the fractions are lower bounds (a miss may be a local-minimum failure); the generating configuration is
 never used as a seed.
+
+Speed (:func:`run_study`, same answers): a necessary condition (:mod:`carmkin.studies.reach_bound`) proves
+most misses of the models without tilts out of reach before any solve; the models are nested (:func:`nested_in`), so a pose a smaller model
+reached is reached by every larger one without a solve; the remaining poses of a row are solved in worker
+processes (2 on this 2-core machine). What time is left goes mostly into the misses the condition cannot
+prove, where every seed runs until it stalls.
 """
 
 from __future__ import annotations
 
 import functools
+import os
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -32,6 +40,7 @@ from carmkin.qp_ik import AxisTarget, QPIKOptions, make_task, solve
 from carmkin.robot import validity
 from carmkin.robot.collision import CollisionScene
 from carmkin.robot.state import KinematicState
+from carmkin.studies.reach_bound import cannot_reach
 from carmkin.transforms import inverse
 
 CARM = CARM_JOINT_NAMES
@@ -106,12 +115,17 @@ def _five_dof_seeds(system: CArmSystem, T: np.ndarray) -> list[np.ndarray]:
 
 
 def reachable(system: CArmSystem, T: np.ndarray, model: str, *, options: QPIKOptions = QPIKOptions(),
-              random_seeds: int = 6, rng_seed: int = 0) -> bool:
-    """Whether ``model``'s joints alone (others at zero) reach the position and axis of T (4, 4), validly."""
+              random_seeds: int = 6, rng_seed: int = 0, bound: bool = True) -> bool:
+    """Whether ``model``'s joints alone (others at zero) reach the position and axis of T (4, 4), validly.
+
+    ``bound``: first the necessary condition :func:`carmkin.studies.reach_bound.cannot_reach` (no solve where
+    it proves the target out of reach: the same answer, found in well under a millisecond)."""
     free = MODELS[model]
     missing = set(free) - set(system.joint_names)
     if missing:
         raise TableWorkspaceError(f"model {model!r} needs joints {sorted(missing)} the system lacks")
+    if bound and cannot_reach(system, T, free):
+        return False
     target = axis_target(T)
     if model == "none":  # the 5-DOF closed form gives every solution: reachable iff one branch is valid
         return any(_branch_reaches(system, target, q, options) for q in _five_dof_seeds(system, T))
@@ -134,27 +148,98 @@ def _scene(system: CArmSystem) -> CollisionScene:
     return CollisionScene.from_system(system)
 
 
+def nested_in(model: str) -> tuple[str, ...]:
+    """The models of :data:`MODELS` whose free joints are a proper subset of ``model``'s (e.g. ``paper`` for
+    ``translations``): a configuration valid for one of them, the extra joints at zero, is valid for ``model``."""
+    return tuple(m for m in MODELS if set(MODELS[m]) < set(MODELS[model]))
+
+
+#: Worker-process state of :func:`run_study` (set once per process by :func:`_init_worker`).
+_WORKER: dict = {}
+
+
+def _init_worker(system, poses, options, random_seeds, seed, bound) -> None:
+    _WORKER.update(system=system, poses=poses, options=options, random_seeds=random_seeds, seed=seed, bound=bound)
+
+
+def _reach_pose(job: tuple[str, int]) -> bool:
+    """``reachable`` of pose ``k`` for ``model`` (``job = (model, k)``) with the arguments of :func:`_init_worker`."""
+    model, k = job
+    w = _WORKER
+    return reachable(w["system"], w["poses"][k], model, options=w["options"], random_seeds=w["random_seeds"],
+                     rng_seed=w["seed"] + k, bound=w["bound"])
+
+
+def default_workers() -> int:
+    """Worker processes of :func:`run_study` by default: one per available core, at most 2 (the machine's)."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    return max(1, min(2, cores))
+
+
 def run_study(system: CArmSystem, models=tuple(MODELS), n: int = 200, seed: int = 0, *,
               random_seeds: int = 6, options: QPIKOptions = QPIKOptions(),
-              progress: Callable[[int], object] | None = None) -> tuple[np.ndarray, list[ModelReach]]:
-    """Desired configurations (n, nq) and the reach of each model on their poses (see the module docstring)."""
-    import time
+              progress: Callable[[int], object] | None = None, workers: int | None = None,
+              nested: bool = True, bound: bool = True) -> tuple[np.ndarray, list[ModelReach]]:
+    """Desired configurations (n, nq) and the reach of each model on their poses (see the module docstring).
 
+    Speed without changing a single answer: ``bound`` (default) skips the solve of a target that
+    :func:`carmkin.studies.reach_bound.cannot_reach` proves out of reach. ``nested`` (default) marks a pose
+    reached by a model without solving it when a model nested in it (:func:`nested_in`), run earlier in
+    ``models``, reached it: that configuration, the extra joints held at zero, is valid for the larger model
+    too (same system, same acceptance rule). ``workers`` > 1 solves the poses of a row in that many
+    processes (default :func:`default_workers`); every pose's solve depends only on the pose and its own
+    ``rng_seed`` (seed + k), so the answers are those of one process. ``ModelReach.seconds`` is wall time.
+    """
     unknown = set(models) - set(MODELS)
     if unknown:
         raise TableWorkspaceError(f"unknown model(s) {sorted(unknown)}; known: {', '.join(MODELS)}")
+    for model in models:  # refuse a model the system cannot run before any solve
+        missing = set(MODELS[model]) - set(system.joint_names)
+        if missing:
+            raise TableWorkspaceError(f"model {model!r} needs joints {sorted(missing)} the system lacks")
     qs = desired_configurations(system, n, seed, options.safety_margin)
     poses = system.fk(qs)
-    out = []
-    for model in models:
-        start = time.perf_counter()
-        reached = []
-        for k, T in enumerate(poses):
-            reached.append(reachable(system, T, model, options=options, random_seeds=random_seeds, rng_seed=seed + k))
-            if progress is not None:
-                progress(1)
-        out.append(ModelReach(model, np.array(reached), time.perf_counter() - start))
+    workers = default_workers() if workers is None else int(workers)
+    if workers < 1:
+        raise TableWorkspaceError(f"workers must be >= 1, got {workers}")
+    init = (system, poses, options, random_seeds, seed, bound)
+    pool = _pool(workers, init) if workers > 1 and len(qs) > 1 else None
+    out: list[ModelReach] = []
+    try:
+        if pool is None:
+            _init_worker(*init)
+        for model in models:
+            start = time.perf_counter()
+            reached = np.zeros(len(qs), dtype=bool)
+            if nested:
+                for earlier in out:
+                    if earlier.model in nested_in(model):
+                        reached |= earlier.reached
+            if progress is not None and reached.any():
+                progress(int(reached.sum()))
+            todo = [(model, k) for k in np.flatnonzero(~reached).tolist()]
+            answers = pool.imap(_reach_pose, todo, chunksize=4) if pool is not None else map(_reach_pose, todo)
+            for (_, k), answer in zip(todo, answers):
+                reached[k] = answer
+                if progress is not None:
+                    progress(1)
+            out.append(ModelReach(model, reached, time.perf_counter() - start))
+    finally:
+        if pool is None:
+            _WORKER.clear()
+        else:
+            pool.close()
+            pool.join()
     return qs, out
+
+
+def _pool(workers: int, init: tuple):
+    """A process pool whose workers hold the study's arguments; forked where the platform allows it, so the
+    built Pinocchio models and collision scene are inherited instead of rebuilt."""
+    import multiprocessing
+
+    method = "fork" if "fork" in multiprocessing.get_all_start_methods() else None
+    return multiprocessing.get_context(method).Pool(workers, initializer=_init_worker, initargs=init)
 
 
 def table_rows(results: list[ModelReach]) -> list[str]:

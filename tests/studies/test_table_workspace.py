@@ -69,3 +69,31 @@ def test_cli_compare_prints_four_rows(capsys, tmp_path):
 
     data = json.loads((tmp_path / "reach.json").read_text())
     assert set(data) == set(tw.MODELS) and all(v["poses"] == 4 for v in data.values())
+
+
+def test_nested_models_are_proper_subsets():
+    assert tw.nested_in("none") == ()
+    assert tw.nested_in("all") == ("none", "paper", "translations")
+    for model in tw.MODELS:
+        for smaller in tw.nested_in(model):
+            assert set(tw.MODELS[smaller]) < set(tw.MODELS[model])
+
+
+def test_worker_processes_and_nested_rows_give_the_answers_of_one_process():
+    """The speed-ups change no answer: the reach bound, two worker processes and skipping poses reached by a
+    nested model give, pose by pose, what one process solving every pose of every row gives."""
+    kwargs = dict(n=8, seed=5, random_seeds=1)
+    qs_one, one = tw.run_study(MOTORIZED, workers=1, nested=False, bound=False, **kwargs)
+    qs_two, two = tw.run_study(MOTORIZED, workers=2, nested=True, bound=True, **kwargs)
+    assert np.array_equal(qs_one, qs_two)
+    assert [r.model for r in one] == [r.model for r in two] == list(tw.MODELS)
+    for a, b in zip(one, two):
+        assert np.array_equal(a.reached, b.reached), a.model
+    for r in one:  # a witness of a nested model is a witness of the larger one
+        for smaller in tw.nested_in(r.model):
+            assert np.all(r.reached >= one[list(tw.MODELS).index(smaller)].reached)
+
+
+def test_bad_worker_count_raises():
+    with pytest.raises(tw.TableWorkspaceError, match="workers"):
+        tw.run_study(MOTORIZED, ("none",), n=1, workers=0)
