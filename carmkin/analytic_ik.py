@@ -42,10 +42,15 @@ import numpy as np
 from carmkin.errors import CarmkinError, InvalidConfigurationError
 from carmkin.model import singular_cases
 from carmkin.model.kinematics import check_configuration
-from carmkin.model.per_system import per_system
 from carmkin.model.params import JOINT_NAMES, JOINT_RANGE_TOLERANCE, PRISMATIC
-from carmkin.transforms import RIGID_TOLERANCE, check_rigid_transform, pose_error, wrap_angle
-from carmkin.validation import MAGNITUDE_LIMIT
+from carmkin.model.per_system import per_system
+from carmkin.transforms import (
+    RIGID_TOLERANCE,
+    check_rigid_transform,
+    pose_error,
+    wrap_angle,
+)
+from carmkin.validation import JOINT_VALUE_LIMIT, MAGNITUDE_LIMIT
 
 #: Below this |det J| (eq. 4.7, dimensionless) a pose is treated as singular and solved numerically. The
 #: closed form loses about eps/|factor| of accuracy; at 1e-5 that stays ~1e-10 m / rad for poses within a
@@ -612,7 +617,7 @@ def _reference(q_current, n_joints: int = 6):
         return (0.0,) * n_joints
     if type(q_current) is np.ndarray and q_current.shape == (n_joints,) and q_current.dtype == np.float64:
         ref = q_current.tolist()
-        if math.isfinite(sum(ref)):
+        if math.isfinite(sum(ref)) and max(map(abs, ref)) <= JOINT_VALUE_LIMIT:
             return ref
     ref = check_configuration(q_current, n_joints, "q_current")
     if ref.ndim != 1:

@@ -27,8 +27,10 @@ from scipy.optimize import brentq
 
 from carmkin import imaging
 from carmkin.errors import CarmkinError, InvalidConfigurationError
+from carmkin.model.bounds import MAX_LENGTH
 from carmkin.robot.collision import CollisionScene, Obstacle
 from carmkin.transforms import check_rigid_transform, pose_error, segment_box_interval
+from carmkin.validation import real_scalar
 
 
 class PanoramaError(CarmkinError):
@@ -37,6 +39,10 @@ class PanoramaError(CarmkinError):
 
 #: Map categories, in the order of the colours of :func:`plot_validity_map`.
 CATEGORIES = ("valid", "joint out of range", "collision", "table not in cone", "no IK solution")
+
+
+#: Most shots one plan may hold: bounds the cost of a call (a femur needs three to five, a 2 m table a dozen).
+MAX_SHOTS = 100
 
 
 def reference_configuration(system) -> np.ndarray:
@@ -250,20 +256,21 @@ class PanoramaPlanner:
         the previous shot's interval, 0 ≤ overlap < 1) before the previous one ends; the last one reaches
         ``+length/2``.
         """
-        if not np.isfinite(length) or length <= 0:
-            raise PanoramaError(f"length must be > 0 (m), got {length}")
-        if not np.isfinite(overlap) or not 0.0 <= overlap < 1.0:
-            raise PanoramaError(f"overlap must be in [0, 1), got {overlap}")
+        length = real_scalar(length, "length", error=PanoramaError, low=0.0, high=MAX_LENGTH, unit="m")
+        overlap = real_scalar(overlap, "overlap", error=PanoramaError, low=0.0, high=1.0)
+        if length == 0.0 or overlap == 1.0:
+            raise PanoramaError(f"length must be > 0 m and overlap < 1, got {length:g} m and {overlap:g}")
         direction = self.default_direction() if direction is None else np.asarray(direction, dtype=float)
         if direction.shape != (3,) or abs(direction[2]) > 1e-12 or abs(np.linalg.norm(direction) - 1) > 1e-9:
             raise PanoramaError("direction must be a unit (3,) vector ⟂ to the reference principal axis")
-        distance = self.default_object_distance() if distance is None else float(distance)
-        if not np.isfinite(distance) or distance <= 0:
-            raise PanoramaError(f"object distance must be > 0 (m), got {distance}")
+        distance = self.default_object_distance() if distance is None else real_scalar(
+            distance, "distance", error=PanoramaError, low=0.0, high=MAX_LENGTH, unit="m")
+        if distance == 0.0:
+            raise PanoramaError("object distance must be > 0 (m), got 0")
         start, end = -0.5 * length, 0.5 * length
         aims, extents = [], []
         target = start
-        for _ in range(1000):
+        for _ in range(MAX_SHOTS):
             def gap(s):
                 return self.extent(s, direction, distance)[0] - target
             step = max(distance, 1e-3)
@@ -280,7 +287,7 @@ class PanoramaPlanner:
                 break
             target = hi_s - overlap * (hi_s - lo_s)
         else:
-            raise PanoramaError("more than 1000 shots needed")
+            raise PanoramaError(f"more than {MAX_SHOTS} shots needed: a shorter length or a smaller overlap")
         return np.array(aims), np.array(extents), distance, direction
 
     def principal_point_of(self, s: float, direction, distance: float) -> np.ndarray:

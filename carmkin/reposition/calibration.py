@@ -26,6 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from carmkin.errors import CarmkinError
+from carmkin.validation import real_array
 
 #: The centred displacements must span a plane: their second singular value must exceed this fraction of
 #: the first (translations along a single direction leave the rotation about it undetermined).
@@ -40,19 +41,12 @@ class CalibrationError(CarmkinError):
 
 
 def _check(positions, displacements) -> tuple[np.ndarray, np.ndarray]:
-    try:
-        P = np.asarray(positions, dtype=float)
-        D = np.asarray(displacements, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise CalibrationError("camera positions and displacements must be numeric (N, 3) arrays") from exc
-    if P.ndim != 2 or P.shape[1] != 3:
-        raise CalibrationError(f"camera_positions_marker must have shape (N, 3) (m), got {P.shape}")
+    P = real_array(positions, "camera_positions_marker", (None, 3), error=CalibrationError, unit="m")
+    D = real_array(displacements, "camera_displacements_table", (None, 3), error=CalibrationError, unit="m")
     if D.shape != P.shape:
         raise CalibrationError(f"camera_displacements_table must have shape {P.shape} like the positions, got {D.shape}")
     if len(P) < 3:
         raise CalibrationError(f"calibration needs at least 3 positions (§3.3.3), got {len(P)}")
-    if not (np.all(np.isfinite(P)) and np.all(np.isfinite(D))):
-        raise CalibrationError("camera positions and displacements must be finite")
     s = np.linalg.svd(D - D.mean(axis=0), compute_uv=False)
     if s[0] == 0.0 or s[1] <= SPAN_TOLERANCE * s[0]:
         raise CalibrationError("the table displacements must span at least two directions (§3.3.3: e.g. "

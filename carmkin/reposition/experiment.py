@@ -32,7 +32,7 @@ import numpy as np
 
 from carmkin.errors import CarmkinError
 
-from .guidance import Guide, GuidanceError, GuidanceOptions, sweep
+from .guidance import GuidanceError, GuidanceOptions, Guide, sweep
 from .model import model_from_pose
 from .pose import PoseError
 from .world import OperatorModel, SimulationError, World, system_mount

@@ -26,6 +26,7 @@ from functools import lru_cache
 import numpy as np
 
 from carmkin.errors import CarmkinError
+from carmkin.validation import real_array
 
 from .camera import CornerView, check_intrinsics
 from .pattern import MarkerBoard
@@ -68,19 +69,12 @@ class PoseEstimate:
 
 
 def _correspondences(object_points, image_points) -> tuple[np.ndarray, np.ndarray]:
-    try:
-        obj = np.asarray(object_points, dtype=float)
-        img = np.asarray(image_points, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise PoseError("object_points and image_points must be numeric arrays") from exc
-    if obj.ndim != 2 or obj.shape[1] != 3:
-        raise PoseError(f"object_points must have shape (N, 3) (m, marker frame), got {obj.shape}")
+    obj = real_array(object_points, "object_points", (None, 3), error=PoseError, unit="m, marker frame")
+    img = real_array(image_points, "image_points", error=PoseError, limit=None, unit="px")
     if img.shape != (len(obj), 2):
         raise PoseError(f"image_points must have shape ({len(obj)}, 2) (px) to match object_points, got {img.shape}")
     if len(obj) < MIN_POINTS:
         raise PoseError(f"pose estimation needs at least {MIN_POINTS} correspondences, got {len(obj)}")
-    if not (np.all(np.isfinite(obj)) and np.all(np.isfinite(img))):
-        raise PoseError("object_points and image_points must be finite")
     return obj, img
 
 

@@ -105,12 +105,12 @@ def test_reprojection_rms_measures_the_noise():
 
 
 @pytest.mark.parametrize("obj, img, match", [
-    (np.zeros((5, 2)), np.zeros((5, 2)), "object_points must have shape"),
+    (np.zeros((5, 2)), np.zeros((5, 2)), "object_points must be real numbers .* of shape \\(N, 3\\)"),
     (np.zeros((5, 3)), np.zeros((4, 2)), "image_points must have shape"),
     (np.zeros((3, 3)), np.zeros((3, 2)), "at least 4"),
     (np.full((5, 3), np.nan), np.zeros((5, 2)), "finite"),
     (np.column_stack((np.arange(5.0), np.zeros(5), np.zeros(5))), np.zeros((5, 2)), "one line"),
-    ("abc", np.zeros((5, 2)), "numeric"),
+    ("abc", np.zeros((5, 2)), "must be real numbers"),
 ])
 def test_bad_correspondences_raise_a_typed_error(obj, img, match):
     with pytest.raises(pose.PoseError, match=match):
