@@ -172,10 +172,17 @@ def solve_pose(object_points, image_points, K, sigma_px: float | None = None, re
         raise PoseError(f"sigma_px must be finite and >= 0 (px), got {sigma_px}")
     if refine not in REFINERS:
         raise PoseError(f"refine must be one of {REFINERS}, got {refine!r}")
-    method = cv2.SOLVEPNP_IPPE if _is_planar(obj) else cv2.SOLVEPNP_SQPNP
-    count, rvecs, tvecs, _ = cv2.solvePnPGeneric(obj, img, K, None, flags=method)
+    # IPPE for a planar pattern; it returns NaN for an exactly fronto-parallel view (the C-arm at its zero
+    # joints looks straight at the board), where SQPNP, which also takes planar points, still solves.
+    methods = (cv2.SOLVEPNP_IPPE, cv2.SOLVEPNP_SQPNP) if _is_planar(obj) else (cv2.SOLVEPNP_SQPNP,)
+    for method in methods:
+        count, rvecs, tvecs, _ = cv2.solvePnPGeneric(obj, img, K, None, flags=method)
+        candidates = [(r, v) for r, v in zip(rvecs[:count], tvecs[:count])
+                      if np.isfinite(r).all() and np.isfinite(v).all()]
+        if candidates:
+            break
     best, starts = None, []
-    for rvec, tvec in zip(rvecs[:count], tvecs[:count]):
+    for rvec, tvec in candidates:
         start = _camera_pose(rvec, tvec)
         if any(np.linalg.norm(start[:3, :3] - other) < SAME_START for other in starts):
             continue  # both IPPE solutions in one basin (a nearly fronto-parallel view): refine once

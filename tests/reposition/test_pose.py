@@ -154,3 +154,11 @@ def test_noisy_estimates_leak_no_warning():
             q = experiment.sample_reference(world, config, rng, scene)
             estimate = world.measure_marker(SYSTEM.fk(q), rng)
             assert np.all(np.isfinite(estimate.T))
+
+
+def test_the_zero_joint_start_looking_straight_at_the_board_is_solved():
+    """§4.6.2's starting position: a fronto-parallel view, where IPPE alone returns NaN (found by hypothesis)."""
+    q = np.array([0.0, 0.0, 5.96046448e-08, 0.0, 3.125e-02, 0.0])
+    T_true = camera.camera_in_marker(MOUNT, SYSTEM.fk(q))
+    estimate = pose.pose_from_view(camera.visible_corners(BOARD, K, SIZE, T_true), K)
+    assert np.linalg.norm(estimate.T[:3, 3] - T_true[:3, 3]) <= EXACT
