@@ -39,7 +39,13 @@ from functools import cached_property
 
 import numpy as np
 
-from carmkin.errors import CarmkinError, InvalidConfigurationError
+from carmkin.errors import (  # noqa: F401 (defined there, raised here)
+    AnalyticIKError,
+    CarmkinError,
+    InvalidConfigurationError,
+    SingularPoseError,
+    UnsupportedSystemError,
+)
 from carmkin.model import singular_cases
 from carmkin.model.kinematics import check_configuration
 from carmkin.model.params import JOINT_NAMES, JOINT_RANGE_TOLERANCE, PRISMATIC
@@ -70,25 +76,6 @@ TIE_TOLERANCE = 1e-12
 _REVOLUTE = tuple(i for i, p in enumerate(PRISMATIC) if not p)
 _PRISMATIC = tuple(i for i, p in enumerate(PRISMATIC) if p)
 _TWO_PI = 2.0 * math.pi
-
-
-class AnalyticIKError(CarmkinError):
-    """Base class of the errors of the closed-form IK."""
-
-
-class UnsupportedSystemError(AnalyticIKError):
-    """The closed form covers the paper's 6-DOF chain; the system has extra (motorized) table joints."""
-
-
-class SingularPoseError(AnalyticIKError):
-    """A singular pose that damped least squares could not solve to :data:`NUMERICAL_TOLERANCE`.
-
-    Attributes: ``cases`` (names from :data:`SINGULAR_CASES`), ``residuals`` (per branch, m/rad).
-    """
-
-    def __init__(self, message: str, cases: tuple[str, ...], residuals: tuple[float, ...]) -> None:
-        super().__init__(message)
-        self.cases, self.residuals = cases, residuals
 
 
 @dataclass(eq=False)

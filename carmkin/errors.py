@@ -38,3 +38,191 @@ class NearSingularSetupError(InvalidParameterError):
 
 class InvalidPoseError(CarmkinError):
     """A pose is not a 4x4 rigid transform (wrong shape, NaN/Inf, not orthonormal, det != 1)."""
+
+
+# --- carmkin.robot.collision ---------------------------------------------------------------------
+
+
+class CollisionSceneError(CarmkinError):
+    """An obstacle or collision pair is ill-defined (unknown geometry name, bad size, duplicate name)."""
+
+
+# --- carmkin.analytic_ik -------------------------------------------------------------------------
+
+
+class AnalyticIKError(CarmkinError):
+    """Base class of the errors of the closed-form IK."""
+
+
+class UnsupportedSystemError(AnalyticIKError):
+    """The closed form covers the paper's 6-DOF chain; the system has extra (motorized) table joints."""
+
+
+class SingularPoseError(AnalyticIKError):
+    """A singular pose that damped least squares could not solve to :data:`NUMERICAL_TOLERANCE`.
+
+    Attributes: ``cases`` (names from :data:`SINGULAR_CASES`), ``residuals`` (per branch, m/rad).
+    """
+
+    def __init__(self, message: str, cases: tuple[str, ...], residuals: tuple[float, ...]) -> None:
+        super().__init__(message)
+        self.cases, self.residuals = cases, residuals
+
+
+# --- carmkin.analytic.five_dof -------------------------------------------------------------------
+
+
+class FiveDofTargetError(CarmkinError):
+    """A 5-DOF target (source position, principal axis) has the wrong shape, NaN/Inf or a non-unit axis."""
+
+
+# --- carmkin.analytic.single_axis ----------------------------------------------------------------
+
+
+class TableIKError(CarmkinError):
+    """Bad request to the single-axis closed form (unknown or non-translational active joint)."""
+
+
+# --- carmkin.analytic.dls ------------------------------------------------------------------------
+
+
+class NumericalIKError(CarmkinError):
+    """Bad input to the damped-least-squares solver (seed shape or values, unknown frame)."""
+
+
+# --- carmkin.qp.options --------------------------------------------------------------------------
+
+
+class QPIKError(CarmkinError):
+    """Bad input to the QP IK (unsupported model, unknown backend, bad option, bad target)."""
+
+
+# --- carmkin.qp.tasks ----------------------------------------------------------------------------
+
+
+class TaskError(CarmkinError):
+    """A task is ill-defined (unknown frame, zero direction, empty distance range, bad weight)."""
+
+
+# --- carmkin.singularity -------------------------------------------------------------------------
+
+
+class SingularityError(CarmkinError):
+    """The request needs what the system does not offer (e.g. a square 6×6 Jacobian)."""
+
+
+# --- carmkin.studies.workspace -------------------------------------------------------------------
+
+
+class WorkspaceStudyError(CarmkinError):
+    """A workspace-study grid or translation list is empty or not finite."""
+
+
+# --- carmkin.studies.table_workspace -------------------------------------------------------------
+
+
+class TableWorkspaceError(CarmkinError):
+    """Bad request to the generalised workspace study (unknown model, N < 1, system lacks joints)."""
+
+
+# --- carmkin.imaging.camera ----------------------------------------------------------------------
+
+
+class ImagingError(CarmkinError):
+    """Bad input to the imaging geometry (shape, non-finite value, point behind the source, ...)."""
+
+
+# --- carmkin.imaging.panorama --------------------------------------------------------------------
+
+
+class PanoramaError(CarmkinError):
+    """Bad input to the panorama planner (principal point, length, overlap, direction, ...)."""
+
+
+# --- carmkin.reposition.pattern ------------------------------------------------------------------
+
+
+class PatternError(CarmkinError):
+    """Bad marker-board or mount parameters."""
+
+
+# --- carmkin.reposition.camera -------------------------------------------------------------------
+
+
+class CameraError(CarmkinError):
+    """Bad camera input (intrinsics, image size, noise level)."""
+
+
+# --- carmkin.reposition.pose ---------------------------------------------------------------------
+
+
+class PoseError(CarmkinError):
+    """Bad input to pose estimation (shapes, too few points, non-finite values) or no solution."""
+
+
+# --- carmkin.reposition.calibration --------------------------------------------------------------
+
+
+class CalibrationError(CarmkinError):
+    """Bad calibration data (shapes, too few positions, displacements along one direction only)."""
+
+
+# --- carmkin.reposition.guidance -----------------------------------------------------------------
+
+
+class GuidanceError(CarmkinError):
+    """No guidance possible: the reference pose has no collision-free IK solution, bad options, ..."""
+
+
+# --- carmkin.reposition.world --------------------------------------------------------------------
+
+
+class SimulationError(CarmkinError):
+    """Bad simulation settings (noise levels, counts)."""
+
+
+# --- carmkin.interop.simulators ------------------------------------------------------------------
+
+
+class SimulatorConventionError(CarmkinError):
+    """A simulator's model cannot represent the given geometry (e.g. a1 ≠ 0 for DeepDRR's MobileCArm)."""
+
+
+# --- carmkin.interop.dicom -----------------------------------------------------------------------
+
+
+class DicomGeometryError(CarmkinError):
+    """A DICOM geometry value is out of range or a dataset lacks what a conversion needs."""
+
+
+# --- carmkin.interop.drr -------------------------------------------------------------------------
+
+
+class RenderingError(CarmkinError):
+    """Rendering is not available (torch/nanodrr/CT missing) or got bad input."""
+
+
+# --- carmkin.viz (the browser viewer) -----------------------------------------------------------------
+
+
+class VisualizationError(CarmkinError):
+    """The viewer cannot do what was asked (no browser, no server, bad scene argument, ...)."""
+
+
+class ServerError(VisualizationError):
+    """The loopback meshcat server could not start or stop."""
+
+
+class BrowserNotFoundError(VisualizationError):
+    """No headless Chromium/Chrome executable to render a page with."""
+
+
+# --- carmkin.commands._common --------------------------------------------------------------------
+
+
+class UsageError(CarmkinError):
+    """A command-line option has a value the command cannot use (names the option and what it expects)."""
+
+
+class NotApplicableError(UsageError):
+    """The command's mathematics does not apply to this system; the message names the alternative."""

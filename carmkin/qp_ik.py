@@ -25,13 +25,31 @@ from typing import Callable, Sequence
 import numpy as np
 
 from carmkin.errors import CarmkinError, InvalidConfigurationError
-from carmkin.qp.backends import BACKENDS, OSQPBackend, QpsolversBackend, default_backend, make_backend
+from carmkin.qp.backends import (
+    BACKENDS,
+    OSQPBackend,
+    QpsolversBackend,
+    default_backend,
+    make_backend,
+)
 from carmkin.qp.limits import CollisionAvoidance, JointLimits
 from carmkin.qp.loop import QPIK
 from carmkin.qp.options import MARGIN_TOLERANCE, SOURCE_FRAME, QPIKError, QPIKOptions
-from carmkin.qp.redundant import PREFERENCE_RATIO, is_table_joint, joint_weights, locked_indices
+from carmkin.qp.redundant import (
+    PREFERENCE_RATIO,
+    is_table_joint,
+    joint_weights,
+    locked_indices,
+)
 from carmkin.qp.redundant import random_seeds as draw_seeds
-from carmkin.qp.results import BranchReport, Failure, Path, QPIKResult, RunStatus, SolveResult
+from carmkin.qp.results import (
+    BranchReport,
+    Failure,
+    Path,
+    QPIKResult,
+    RunStatus,
+    SolveResult,
+)
 from carmkin.qp.step import StepQP, build_step, solve_step
 from carmkin.qp.targets import AimTarget, AxisTarget, closed_form_pose, make_task
 from carmkin.robot.collision import CollisionScene, Obstacle

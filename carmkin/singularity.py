@@ -39,10 +39,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+
 import numpy as np
 import pinocchio as pin
 
-from carmkin.errors import CarmkinError
+from carmkin.errors import (
+    SingularityError,  # noqa: F401 (defined there, raised here)
+)
 from carmkin.model import singular_cases
 from carmkin.model.kinematics import check_configuration
 from carmkin.model.params import JOINT_NAMES, PRISMATIC
@@ -59,10 +62,6 @@ CASES = singular_cases.CASES
 CASE_TITLES = {case: case.title for case in CASES}
 #: What is lost in each case, in words (directions named in the table frame; n is the reported axis).
 CASE_LOSSES = {case: case.loss for case in CASES}
-
-
-class SingularityError(CarmkinError):
-    """The request needs what the system does not offer (e.g. a square 6×6 Jacobian)."""
 
 
 def _paper_chain(system: CArmSystem, q) -> np.ndarray:

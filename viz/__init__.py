@@ -6,8 +6,9 @@
 - :func:`screenshot`: render a page to PNG with headless Chromium.
 """
 
+from carmkin.errors import BrowserNotFoundError, ServerError, VisualizationError
+
 from .distances import DistanceChecker, PairDistance
-from .errors import BrowserNotFoundError, ServerError, VisualizationError
 from .screenshot import find_chromium, screenshot
 from .server import LoopbackServer
 from .static import RecordingWindow, offline_visualizer

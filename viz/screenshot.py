@@ -14,7 +14,7 @@ import subprocess
 import tempfile
 from pathlib import Path
 
-from .errors import BrowserNotFoundError, VisualizationError
+from carmkin.errors import BrowserNotFoundError, VisualizationError
 
 #: Shortest virtual-time budget accepted: with 200 ms, Chromium never finished on a static viewer page here
 #: (the 0.9 MB page had not loaded when the budget ran out and an idle page draws no further frame).

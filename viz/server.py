@@ -21,7 +21,7 @@ import threading
 import meshcat
 from meshcat.servers.zmqserver import ZMQWebSocketBridge
 
-from .errors import ServerError
+from carmkin.errors import ServerError
 
 LOOPBACK = "127.0.0.1"
 

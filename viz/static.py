@@ -16,7 +16,7 @@ import umsgpack
 from meshcat.servers.tree import SceneTree, find_node, walk
 from meshcat.servers.zmqserver import VIEWER_ROOT, create_command
 
-from .errors import VisualizationError
+from carmkin.errors import VisualizationError
 
 _PAGE = """<!DOCTYPE html>
 <html>

@@ -23,14 +23,13 @@ import pinocchio as pin
 from meshcat.animation import Animation
 from pinocchio.visualize import MeshcatVisualizer
 
-from carmkin.errors import InvalidConfigurationError
+from carmkin.errors import InvalidConfigurationError, VisualizationError
 from carmkin.model import kinematics
 from carmkin.model.system import CArmSystem
 from carmkin.transforms import check_rigid_transform
 
 from . import shapes
 from .distances import DistanceChecker, PairDistance, distance_color
-from .errors import VisualizationError
 from .static import RecordingWindow, offline_visualizer
 
 ROOT = "carmkin"

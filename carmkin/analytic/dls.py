@@ -18,16 +18,14 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from carmkin.errors import CarmkinError
+from carmkin.errors import (
+    NumericalIKError,  # noqa: F401 (defined there, raised here)
+)
 from carmkin.model.per_system import per_system
 from carmkin.transforms import check_rigid_transform, pose_error
 
 #: Default convergence threshold on the pose residual (m and rad).
 TOLERANCE = 1e-9
-
-
-class NumericalIKError(CarmkinError):
-    """Bad input to the damped-least-squares solver (seed shape or values, unknown frame)."""
 
 
 @dataclass(frozen=True)

@@ -44,7 +44,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from carmkin.errors import CarmkinError
+from carmkin.errors import (
+    CarmkinError,
+    FiveDofTargetError,  # noqa: F401 (defined there, raised here)
+)
 from carmkin.model.kinematics import ClosedFormFK
 from carmkin.model.params import PRISMATIC, CArmGeometry, TableSetup
 from carmkin.transforms import wrap_angle
@@ -57,10 +60,6 @@ _NEWTON_STEPS = 10
 _IMAG_TOLERANCE = 1e-4
 #: Targets per batch of the polynomial solver (its de-duplication compares 16 x 16 branches per target).
 CHUNK = 2048
-
-
-class FiveDofTargetError(CarmkinError):
-    """A 5-DOF target (source position, principal axis) has the wrong shape, NaN/Inf or a non-unit axis."""
 
 
 @dataclass(frozen=True)

@@ -19,7 +19,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from carmkin import analytic_ik
-from carmkin.errors import CarmkinError, InvalidConfigurationError
+from carmkin.errors import (
+    InvalidConfigurationError,
+    TableIKError,  # noqa: F401 (defined there, raised here)
+)
 from carmkin.model.kinematics import check_configuration
 from carmkin.model.params import TableSetup
 from carmkin.model.system import CArmSystem
@@ -27,10 +30,6 @@ from carmkin.transforms import check_rigid_transform, inverse, rotation_between
 
 #: Joints that can play the paper's d0: the table's translations.
 TRANSLATIONS = ("table_translation", "table_lateral", "table_height")
-
-
-class TableIKError(CarmkinError):
-    """Bad request to the single-axis closed form (unknown or non-translational active joint)."""
 
 
 @dataclass(frozen=True)

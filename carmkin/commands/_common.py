@@ -18,11 +18,13 @@ from pathlib import Path
 
 import numpy as np
 
-from carmkin.errors import (
+from carmkin.errors import (  # noqa: F401 (defined there, raised here)
     CarmkinError,
     InvalidConfigurationError,
     InvalidPoseError,
+    NotApplicableError,
     PresetError,
+    UsageError,
 )
 from carmkin.model.system import CArmSystem
 from carmkin.presets import list_presets, load_preset
@@ -34,14 +36,6 @@ MM_PER_M = 1000.0
 DEG_PER_RAD = 180.0 / math.pi
 #: Metavar of a joint-vector option: one value per joint of the preset, mm or degrees.
 JOINTS_METAVAR = "V1,...,VN"
-
-
-class UsageError(CarmkinError):
-    """A command-line option has a value the command cannot use (names the option and what it expects)."""
-
-
-class NotApplicableError(UsageError):
-    """The command's mathematics does not apply to this system; the message names the alternative."""
 
 
 # --- the preset -----------------------------------------------------------------------------------------

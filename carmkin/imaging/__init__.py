@@ -22,7 +22,13 @@ from .camera import (
     rotation_between,
     rotation_homography,
 )
-from .projection import intrinsics, patient_pose, pose_from_projection, projection_from_pose, projection_matrix
+from .projection import (
+    intrinsics,
+    patient_pose,
+    pose_from_projection,
+    projection_from_pose,
+    projection_matrix,
+)
 
 __all__ = [
     "ImagingError", "apply_homography", "back_project", "dehomogenize", "homogeneous", "homography_between",

@@ -16,13 +16,11 @@ from __future__ import annotations
 import numpy as np
 
 from carmkin import transforms
-from carmkin.errors import CarmkinError
+from carmkin.errors import (
+    ImagingError,  # noqa: F401 (defined there, raised here)
+)
 from carmkin.transforms import check_rigid_transform
 from carmkin.validation import MAGNITUDE_LIMIT, real_array, real_scalar
-
-
-class ImagingError(CarmkinError):
-    """Bad input to the imaging geometry (shape, non-finite value, point behind the source, ...)."""
 
 
 def _points(X, dim: int, name: str) -> np.ndarray:

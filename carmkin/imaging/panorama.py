@@ -26,16 +26,14 @@ import numpy as np
 from scipy.optimize import brentq
 
 from carmkin import imaging
-from carmkin.errors import CarmkinError, InvalidConfigurationError
+from carmkin.errors import (
+    InvalidConfigurationError,
+    PanoramaError,  # noqa: F401 (defined there, raised here)
+)
 from carmkin.model.bounds import MAX_LENGTH
 from carmkin.robot.collision import CollisionScene, Obstacle
 from carmkin.transforms import check_rigid_transform, pose_error, segment_box_interval
 from carmkin.validation import real_scalar
-
-
-class PanoramaError(CarmkinError):
-    """Bad input to the panorama planner (principal point, length, overlap, direction, ...)."""
-
 
 #: Map categories, in the order of the colours of :func:`plot_validity_map`.
 CATEGORIES = ("valid", "joint out of range", "collision", "table not in cone", "no IK solution")

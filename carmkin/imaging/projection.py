@@ -87,7 +87,9 @@ def pose_from_projection(P) -> tuple[np.ndarray, np.ndarray]:
     ``P`` may carry any non-zero scale, including a negative one. RQ decomposition (scipy) of the left
     3x3 block, with the signs fixed so that K has a positive diagonal and R is a proper rotation.
     """
-    from scipy.linalg import rq  # imported here: carmkin.imaging stays numpy-only on import
+    from scipy.linalg import (
+        rq,  # imported here: carmkin.imaging stays numpy-only on import
+    )
 
     P = np.asarray(P, dtype=float)
     if P.shape != (3, 4) or not np.all(np.isfinite(P)):

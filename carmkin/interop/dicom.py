@@ -47,7 +47,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from carmkin.errors import CarmkinError
+from carmkin.errors import (
+    DicomGeometryError,  # noqa: F401 (defined there, raised here)
+)
 from carmkin.imaging.projection import patient_pose
 from carmkin.interop.simulators import MM
 from carmkin.transforms import check_rigid_transform, inverse
@@ -57,10 +59,6 @@ SOURCE_IN_POSITIONER = np.array([[-1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, -1.0,
 
 #: Isocentre axes (columns X, Y, Z) in DH frame 2 of the chain: X = Y2, Y = −Z2, Z = −X2.
 ISOCENTER_IN_FRAME2 = np.array([[0.0, 0.0, -1.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
-
-
-class DicomGeometryError(CarmkinError):
-    """A DICOM geometry value is out of range or a dataset lacks what a conversion needs."""
 
 
 def _c_s(angle_deg: float) -> tuple[float, float]:

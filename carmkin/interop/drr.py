@@ -19,7 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
-from carmkin.errors import CarmkinError
+from carmkin.errors import (
+    RenderingError,  # noqa: F401 (defined there, raised here)
+)
 from carmkin.imaging.projection import patient_pose
 from carmkin.interop import simulators
 from carmkin.transforms import check_rigid_transform, inverse
@@ -29,10 +31,6 @@ FIDUCIAL_HU = 8000.0
 
 #: RAS → LPS.
 RAS_TO_LPS = np.diag([-1.0, -1.0, 1.0])
-
-
-class RenderingError(CarmkinError):
-    """Rendering is not available (torch/nanodrr/CT missing) or got bad input."""
 
 
 def bundled_ct_path() -> Path:

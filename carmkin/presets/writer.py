@@ -11,7 +11,6 @@ import math
 from dataclasses import fields
 from pathlib import Path
 
-
 from carmkin.errors import PresetError
 from carmkin.model.params import PRISMATIC, BodyGeometry, JointRange
 from carmkin.model.system import CArmSystem

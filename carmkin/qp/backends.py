@@ -105,8 +105,9 @@ class DAQPBackend:
     INFINITY = 1e30
 
     def __init__(self, name: str, nv: int, max_rows: int) -> None:
-        import daqp
         from ctypes import c_int
+
+        import daqp
 
         self._solve = daqp.solve
         self.nv, self.max_rows = nv, max_rows

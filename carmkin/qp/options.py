@@ -6,7 +6,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from carmkin.errors import CarmkinError
+from carmkin.errors import (
+    QPIKError,  # noqa: F401 (defined there, raised here)
+)
 
 #: A run counts as clear of obstacles when every pair is at least ``safety_margin - MARGIN_TOLERANCE`` apart (m).
 MARGIN_TOLERANCE = 1e-6
@@ -14,10 +16,6 @@ MARGIN_TOLERANCE = 1e-6
 AT_LIMIT_TOLERANCE = 1e-9
 #: Frame of the X-ray source, the end effector of the C-arm chain.
 SOURCE_FRAME = "xray_source"
-
-
-class QPIKError(CarmkinError):
-    """Bad input to the QP IK (unsupported model, unknown backend, bad option, bad target)."""
 
 
 @dataclass(frozen=True)

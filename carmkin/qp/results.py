@@ -3,7 +3,7 @@ people (``reason``) are rendered from them and never parsed. Results are frozen:
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from enum import Enum
 
 import numpy as np

@@ -14,12 +14,10 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from carmkin.errors import CarmkinError
+from carmkin.errors import (
+    TaskError,  # noqa: F401 (defined there, raised here)
+)
 from carmkin.transforms import check_rigid_transform, skew
-
-
-class TaskError(CarmkinError):
-    """A task is ill-defined (unknown frame, zero direction, empty distance range, bad weight)."""
 
 
 def _unit(v, name: str) -> np.ndarray:

@@ -25,7 +25,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from carmkin.errors import CarmkinError
+from carmkin.errors import (
+    CalibrationError,  # noqa: F401 (defined there, raised here)
+    )
 from carmkin.validation import real_array
 
 #: The centred displacements must span a plane: their second singular value must exceed this fraction of
@@ -34,10 +36,6 @@ SPAN_TOLERANCE = 1e-3
 #: A move counts as along one table axis when its other components are below this fraction of its length.
 AXIS_TOLERANCE = 1e-6
 METHODS = ("svd", "lines")
-
-
-class CalibrationError(CarmkinError):
-    """Bad calibration data (shapes, too few positions, displacements along one direction only)."""
 
 
 def _check(positions, displacements) -> tuple[np.ndarray, np.ndarray]:

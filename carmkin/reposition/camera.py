@@ -13,17 +13,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from carmkin.errors import CarmkinError
+from carmkin.errors import (
+    CameraError,  # noqa: F401 (defined there, raised here)
+    )
 from carmkin.transforms import check_rigid_transform, inverse
 
 from .pattern import MarkerBoard
 
 #: A visible marker's corners lie at least this far inside the image edges (px).
 BORDER_PX = 3.0
-
-
-class CameraError(CarmkinError):
-    """Bad camera input (intrinsics, image size, noise level)."""
 
 
 @dataclass(frozen=True)

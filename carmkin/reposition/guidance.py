@@ -26,7 +26,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from carmkin.errors import CarmkinError
+from carmkin.errors import (
+    CarmkinError,
+    GuidanceError,  # noqa: F401 (defined there, raised here)
+)
 
 from .model import frozen_table_system
 
@@ -37,10 +40,6 @@ SEED_ROTATION_THRESHOLD = math.radians(0.5)
 MAX_SWEEP_SAMPLES = 2000
 #: Manual move order, first to last; joints not named (e.g. a motorized table's) come after, in q order.
 DEFAULT_ORDER = ("table_translation", "vertical", "horizontal", "wigwag", "angular", "orbital")
-
-
-class GuidanceError(CarmkinError):
-    """No guidance possible: the reference pose has no collision-free IK solution, bad options, ..."""
 
 
 @dataclass(frozen=True)

@@ -21,16 +21,14 @@ from functools import cached_property
 
 import numpy as np
 
-from carmkin.errors import CarmkinError
+from carmkin.errors import (
+    PatternError,  # noqa: F401 (defined there, raised here)
+)
 from carmkin.transforms import check_rigid_transform
 
 #: Square size and gap of the seed's pattern (Fig. 3.2 caption), m.
 SEED_MARKER_LENGTH = 0.0165
 SEED_MARKER_SEPARATION = 0.0055
-
-
-class PatternError(CarmkinError):
-    """Bad marker-board or mount parameters."""
 
 
 @dataclass(frozen=True)

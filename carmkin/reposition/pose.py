@@ -25,7 +25,9 @@ from functools import lru_cache
 
 import numpy as np
 
-from carmkin.errors import CarmkinError
+from carmkin.errors import (
+    PoseError,  # noqa: F401 (defined there, raised here)
+)
 from carmkin.validation import real_array
 
 from .camera import CornerView, check_intrinsics
@@ -48,10 +50,6 @@ REFINERS = ("minpack", "opencv")
 #: tilt about the line of sight; when their rotations differ by less than this (Frobenius norm, ~0.6°) they
 #: start in the same basin and only the first is refined.
 SAME_START = 0.01
-
-
-class PoseError(CarmkinError):
-    """Bad input to pose estimation (shapes, too few points, non-finite values) or no solution."""
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from carmkin.errors import CarmkinError
+from carmkin.errors import (
+    SimulationError,  # noqa: F401 (defined there, raised here)
+)
 from carmkin.transforms import check_rigid_transform
 
 from . import camera, pose
@@ -25,10 +27,6 @@ from .pattern import MarkerBoard, mounted, nominal_mount
 #: Default mount error of the pattern: a rotation of this angle (rad) about a random axis ("edges roughly
 #: parallel to the edges of the table", §3.3.1).
 MOUNT_ERROR = math.radians(2.0)
-
-
-class SimulationError(CarmkinError):
-    """Bad simulation settings (noise levels, counts)."""
 
 
 def random_rotation(rng: np.random.Generator, angle: float) -> np.ndarray:

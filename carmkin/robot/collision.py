@@ -27,7 +27,9 @@ import coal
 import numpy as np
 import pinocchio as pin
 
-from carmkin.errors import CarmkinError
+from carmkin.errors import (
+    CollisionSceneError,  # noqa: F401 (defined there, raised here)
+)
 from carmkin.transforms import check_rigid_transform
 
 #: Links of the C-arm that move with the vertical joint or later joints (collision candidates).
@@ -36,10 +38,6 @@ CARM_MOVING_LINKS = ("dh_frame_2", "dh_frame_3", "dh_frame_4", "dh_frame_5", "dh
 CARM_ENVIRONMENT_LINKS = ("table", "floor")
 #: (moving link, environment link) pairs left out: the column stands in the cart on the floor.
 CARM_EXCLUDED_PAIRS = (("dh_frame_2", "floor"),)
-
-
-class CollisionSceneError(CarmkinError):
-    """An obstacle or collision pair is ill-defined (unknown geometry name, bad size, duplicate name)."""
 
 
 @dataclass(frozen=True)

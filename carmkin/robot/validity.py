@@ -17,8 +17,8 @@ from typing import Sequence
 import numpy as np
 
 from carmkin.errors import InvalidConfigurationError
-from carmkin.validation import JOINT_VALUE_LIMIT, real_array, real_scalar
 from carmkin.transforms import segment_hits_box
+from carmkin.validation import JOINT_VALUE_LIMIT, real_array, real_scalar
 
 from .collision import CollisionScene, Obstacle, link_of
 from .state import KinematicState

@@ -33,7 +33,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from carmkin.analytic import five_dof
-from carmkin.errors import CarmkinError
+from carmkin.errors import (
+    TableWorkspaceError,  # noqa: F401 (defined there, raised here)
+)
 from carmkin.model.params import CARM_JOINT_NAMES
 from carmkin.model.system import CArmSystem
 from carmkin.qp_ik import AxisTarget, QPIKOptions, make_task, solve
@@ -55,10 +57,6 @@ MODELS: dict[str, tuple[str, ...]] = {
 }
 LABELS = {"none": "5-DOF C-arm alone", "paper": "+ table translation d0 (paper)",
           "translations": "+ translation, lateral, height", "all": "+ tilts and rotation (all)"}
-
-
-class TableWorkspaceError(CarmkinError):
-    """Bad request to the generalised workspace study (unknown model, N < 1, system lacks joints)."""
 
 
 @dataclass(frozen=True)

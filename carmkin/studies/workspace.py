@@ -24,7 +24,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from carmkin.analytic import five_dof
-from carmkin.errors import CarmkinError
+from carmkin.errors import (
+    WorkspaceStudyError,  # noqa: F401 (defined there, raised here)
+)
 from carmkin.model import singular_cases
 from carmkin.model.params import CARM_JOINT_NAMES, JOINT_RANGE_TOLERANCE
 from carmkin.model.system import CArmSystem
@@ -35,10 +37,6 @@ JOINTS = CARM_JOINT_NAMES
 #: Display unit per joint and the factor from SI to it.
 UNITS = {"vertical": ("mm", 1e3), "wigwag": ("deg", 180 / math.pi), "horizontal": ("mm", 1e3),
          "angular": ("deg", 180 / math.pi), "orbital": ("deg", 180 / math.pi)}
-
-
-class WorkspaceStudyError(CarmkinError):
-    """A workspace-study grid or translation list is empty or not finite."""
 
 
 @dataclass(frozen=True)
