@@ -17,9 +17,9 @@ def test_project_prints_p_and_passes_the_round_trip_check(capsys):
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["project", "--q-mm-deg", "1,2,3"], "needs 6 finite values"),
+    (["project", "--q-mm-deg", "1,2,3"], "needs 6 comma-separated values"),
     (["project", "--patient", "XYZ"], "patient position must be one of"),
-    (["project", "--patient", "HFS", "--patient-origin-mm", "1,nope,3"], "three numbers (mm)"),
+    (["project", "--patient", "HFS", "--patient-origin-mm", "1,nope,3"], "--patient-origin-mm must be numbers"),
     (["dicom", "--read", "/nonexistent/file.dcm"], "cannot read"),
 ])
 def test_usage_errors_exit_2_without_traceback(argv, message, capsys):
