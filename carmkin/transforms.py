@@ -14,10 +14,9 @@ import math
 import numpy as np
 
 from carmkin.errors import InvalidPoseError
-from carmkin.validation import real_array
+from carmkin.validation import RIGID_TOLERANCE, real_array, rigid_transform
 
-#: Tolerance of :func:`check_rigid_transform` on ``||R^T R - I||`` and ``|det R - 1|``.
-RIGID_TOLERANCE = 1e-9
+# RIGID_TOLERANCE (1e-9, on ||R^T R - I|| and |det R - 1|) is defined once in carmkin.validation.
 #: Largest ``||R^T R - I||_F`` (and deviation of the last row from [0, 0, 0, 1]) that :func:`nearest_rigid`
 #: accepts as "nearly rigid": a pose typed with 4 decimals has ~2e-4, a float32 pose ~1e-7; beyond 1e-3
 #: (an angle error of ~0.06°) the matrix is more likely wrong than rounded, so it is refused, not projected.
@@ -74,23 +73,11 @@ def inverse(T: np.ndarray) -> np.ndarray:
 def check_rigid_transform(T, name: str = "pose", batch: bool = False) -> np.ndarray:
     """Return ``T`` as a float array after checking it is a rigid transform (or a stack of them).
 
-    Raises :class:`InvalidPoseError` naming ``name`` when the shape is not (4, 4) (or (N, 4, 4) with
-    ``batch``), a value is not a finite real number within :data:`~carmkin.validation.MAGNITUDE_LIMIT`, the last row is not [0, 0, 0, 1], ``||R^T R - I|| > 1e-9`` or
-    ``|det R - 1| > 1e-9``.
+    :func:`carmkin.validation.rigid_transform` with :class:`InvalidPoseError`: shape (4, 4) (or (N, 4, 4)
+    with ``batch``), finite real entries within :data:`~carmkin.validation.MAGNITUDE_LIMIT`, last row
+    [0, 0, 0, 1], ``||R^T R - I|| <= 1e-9`` and ``|det R - 1| <= 1e-9``.
     """
-    T = real_array(T, name, (None, 4, 4) if batch else (4, 4), error=InvalidPoseError, unit="m")
-    if np.abs(T[..., 3, :] - (0, 0, 0, 1)).max(initial=0.0) > RIGID_TOLERANCE:
-        raise InvalidPoseError(f"{name}: last row must be [0, 0, 0, 1]")
-    R = T[..., :3, :3]
-    ortho = np.linalg.norm(np.swapaxes(R, -1, -2) @ R - np.eye(3), axis=(-2, -1))
-    if ortho.max(initial=0.0) > RIGID_TOLERANCE:
-        raise InvalidPoseError(
-            f"{name}: rotation is not orthonormal (||R^T R - I|| = {ortho.max():.3g} > {RIGID_TOLERANCE:g})"
-        )
-    det = np.linalg.det(R)
-    if np.abs(det - 1.0).max(initial=0.0) > RIGID_TOLERANCE:
-        raise InvalidPoseError(f"{name}: rotation has det = {det.min():.6g}, expected +1 (a reflection?)")
-    return T
+    return rigid_transform(T, name, error=InvalidPoseError, batch=batch)
 
 
 def rotation_between(a, b) -> np.ndarray:

@@ -18,7 +18,7 @@ from typing import Sequence
 
 import numpy as np
 
-from carmkin.errors import CarmkinError, InvalidParameterError
+from carmkin.errors import CarmkinError, InvalidParameterError, InvalidPoseError
 
 #: Largest magnitude (m or rad) of any number a public function accepts (joint values, pose entries,
 #: points): a thousand kilometres. Far beyond any real C-arm, table or pose — the IK's out-of-range
@@ -103,3 +103,166 @@ def real_scalar(
         bounds = f"[{'-inf' if low is None else f'{low:g}'}, {'inf' if high is None else f'{high:g}'}]"
         raise error(f"{name} must be within {bounds}{f' {unit}' if unit else ''}, got {number:g}")
     return number
+
+
+# --- The kinds of outside geometry: one way in for each -------------------------------------------------
+# Every module that accepts a rotation, a rigid transform, camera intrinsics, a projection matrix, points,
+# pixels, a length or a joint index converts it through the function below (docs/inputs.md lists what each
+# accepts and refuses).
+
+#: Tolerance on ``||R^T R - I||_F``, ``|det R - 1|`` and the last row of a rigid transform (dimensionless).
+RIGID_TOLERANCE = 1e-9
+#: Tolerance (relative to the focal length) on the entries of K below the diagonal, and absolute on
+#: ``K[2, 2] - 1``. K is not normalised silently: a K whose last row is not (0, 0, 1) is refused, naming the
+#: division by K[2, 2] that would make it one (a K scaled by 5 is a focal length 5x off, not a rounding).
+INTRINSICS_TOLERANCE = 1e-12
+#: Largest focal length and |principal point| of K (px): 1e7 px (a 1 µm pixel at 10 m).
+MAX_FOCAL_PX = 1e7
+#: Largest condition number of a projection matrix's left 3x3 block, after the scale is normalised: beyond
+#: it the block is rank-deficient in floating point (no finite centre of projection).
+MAX_PROJECTION_CONDITION = 1e12
+#: Largest length (m) a public function accepts as a physical distance (source-to-isocentre, object
+#: distance, marker size, ...): 10 m, as :data:`carmkin.model.bounds.MAX_LENGTH`.
+MAX_DISTANCE = 10.0
+#: Smallest strictly positive length (m): 1 µm.
+MIN_DISTANCE = 1e-6
+
+
+def _deviation_text(value: float) -> str:
+    return f"{value:.3g}"
+
+
+def rotation(value, name: str, *, error: type[CarmkinError] = InvalidParameterError,
+             tolerance: float = RIGID_TOLERANCE) -> np.ndarray:
+    """``value`` as a proper rotation matrix (3, 3), or ``error`` saying by how much it is off.
+
+    Orthonormal to ``tolerance`` (``||R^T R - I||_F``) and ``det R = +1`` to ``tolerance``: a scaled matrix,
+    a reflection and a zero matrix are refused (never read as angles).
+    """
+    R = real_array(value, name, (3, 3), error=error, limit=None)
+    ortho = float(np.linalg.norm(R.T @ R - np.eye(3)))
+    if not ortho <= tolerance:
+        raise error(f"{name} must be a rotation matrix (orthonormal), got ||R^T R - I|| = "
+                    f"{_deviation_text(ortho)} > {tolerance:g}")
+    det = float(np.linalg.det(R))
+    if not abs(det - 1.0) <= tolerance:
+        raise error(f"{name} must be a proper rotation (det +1), got det = {det:.6g} (a reflection?)")
+    return R
+
+
+def rigid_transform(value, name: str, *, error: type[CarmkinError] = InvalidPoseError, batch: bool = False,
+                    tolerance: float = RIGID_TOLERANCE) -> np.ndarray:
+    """``value`` as a rigid transform (4, 4) (or a stack (N, 4, 4) with ``batch``), or ``error``.
+
+    Entries finite and within :data:`MAGNITUDE_LIMIT` (m), last row [0, 0, 0, 1], rotation orthonormal with
+    det +1, each to ``tolerance`` (:data:`RIGID_TOLERANCE`); the message says by how much it is off and
+    names :func:`carmkin.transforms.nearest_rigid` for a matrix that is only rounded.
+    """
+    T = real_array(value, name, (None, 4, 4) if batch else (4, 4), error=error, unit="m")
+    row = np.abs(T[..., 3, :] - (0, 0, 0, 1)).max(initial=0.0)
+    if row > tolerance:
+        raise error(f"{name}: last row must be [0, 0, 0, 1], off by {_deviation_text(row)}")
+    R = T[..., :3, :3]
+    ortho = np.linalg.norm(np.swapaxes(R, -1, -2) @ R - np.eye(3), axis=(-2, -1))
+    if ortho.max(initial=0.0) > tolerance:
+        raise error(f"{name}: rotation is not orthonormal (||R^T R - I|| = {ortho.max():.3g} > {tolerance:g}; "
+                    "a pose rounded by hand can be projected with carmkin.transforms.nearest_rigid)")
+    det = np.linalg.det(R)
+    if np.abs(det - 1.0).max(initial=0.0) > tolerance:
+        raise error(f"{name}: rotation has det = {det.min():.6g}, expected +1 (a reflection?)")
+    return T
+
+
+def intrinsics(value, name: str = "K", *, error: type[CarmkinError] = InvalidParameterError) -> np.ndarray:
+    """``value`` as a pinhole matrix ``[[fx, s, cx], [0, fy, cy], [0, 0, 1]]`` (px), or ``error``.
+
+    Finite and real; zero below the diagonal and ``K[2, 2] = 1`` (to :data:`INTRINSICS_TOLERANCE`, never
+    normalised silently); ``0 < fx, fy <= MAX_FOCAL_PX``; ``|s|, |cx|, |cy| <= MAX_FOCAL_PX``.
+    """
+    K = real_array(value, name, (3, 3), error=error, limit=None, unit="px")
+    text = np.array2string(K, precision=4)
+    if not abs(K[2, 2] - 1.0) <= INTRINSICS_TOLERANCE:
+        raise error(f"{name} must have K[2, 2] = 1 (pinhole [[fx, s, cx], [0, fy, cy], [0, 0, 1]]), got "
+                    f"{K[2, 2]:.6g}; divide K by K[2, 2] if it is only scaled: {text}")
+    if not (0.0 < K[0, 0] <= MAX_FOCAL_PX and 0.0 < K[1, 1] <= MAX_FOCAL_PX):
+        raise error(f"{name} must have focal lengths 0 < fx, fy <= {MAX_FOCAL_PX:g} px, got "
+                    f"fx = {K[0, 0]:.6g}, fy = {K[1, 1]:.6g}")
+    below = max(abs(K[1, 0]), abs(K[2, 0]), abs(K[2, 1]))
+    if not below <= INTRINSICS_TOLERANCE * max(K[0, 0], K[1, 1], 1.0):
+        raise error(f"{name} must be upper triangular (pinhole [[fx, s, cx], [0, fy, cy], [0, 0, 1]]), got {text}")
+    if np.abs(K[:2, 1:]).max() > MAX_FOCAL_PX or abs(K[0, 2]) > MAX_FOCAL_PX:
+        raise error(f"{name} must have |s|, |cx|, |cy| <= {MAX_FOCAL_PX:g} px, got {text}")
+    return K
+
+
+def projection_matrix(value, name: str = "P", *, error: type[CarmkinError] = InvalidParameterError,
+                      points=None) -> np.ndarray:
+    """``value`` as a projection matrix (3, 4) normalised to ``||P[2, :3]|| = 1`` with ``det P[:, :3] > 0``.
+
+    Real and finite (any non-zero scale, negative included, is divided out); rank 3 (the condition number
+    of the normalised left block at most :data:`MAX_PROJECTION_CONDITION`), so the centre of projection is
+    finite. With ``points`` (N, 3) given, each must lie in front of the centre (positive depth), else
+    ``error``. In the normalised P, ``P[2] @ (X, 1)`` is the depth (in world units) of a world point X.
+    """
+    P = real_array(value, name, (3, 4), error=error, limit=None)
+    scale = float(np.linalg.norm(P[2, :3]))
+    if not np.isfinite(scale) or scale == 0.0:
+        raise error(f"{name} must be a projection matrix with a non-zero third row, got P[2, :3] = {P[2, :3]}")
+    with np.errstate(all="ignore"):
+        P = P / scale
+        det = float(np.linalg.det(P[:, :3]))
+        cond = float(np.linalg.cond(P[:, :3])) if np.all(np.isfinite(P)) else np.inf
+    if not np.all(np.isfinite(P)) or not np.isfinite(cond) or cond > MAX_PROJECTION_CONDITION or det == 0.0:
+        raise error(f"{name} must have a left 3x3 block of rank 3 (a finite centre of projection), got condition "
+                    f"number {cond:.3g} > {MAX_PROJECTION_CONDITION:g}")
+    if det < 0:
+        P = -P
+    if points is not None:
+        X = point_array(points, "points", error=error)
+        depth = X @ P[2, :3] + P[2, 3]
+        if not np.all(depth > 0):
+            raise error(f"{name}: {int(np.sum(depth <= 0))} of {len(depth)} points lie behind the centre of "
+                        f"projection (depth {depth.min():.6g})")
+    return P
+
+
+def point_array(value, name: str, dim: int = 3, *, error: type[CarmkinError] = InvalidParameterError,
+                min_count: int = 1, unit: str = "m", limit: float | None = MAGNITUDE_LIMIT) -> np.ndarray:
+    """``value`` as an (N, ``dim``) array of finite real coordinates with N >= ``min_count``, or ``error``.
+
+    A single point of shape (``dim``,) is read as N = 1.
+    """
+    X = real_array(value, name, error=error, unit=unit, limit=limit)
+    if X.ndim == 1 and X.shape[0] == dim:
+        X = X[None, :]
+    if X.ndim != 2 or X.shape[1] != dim:
+        raise error(f"{name} must have shape (N, {dim}) ({unit}), got shape {X.shape}")
+    if len(X) < min_count:
+        raise error(f"{name} must hold at least {min_count} points, got {len(X)}")
+    return X
+
+
+def pixel_array(value, name: str, *, error: type[CarmkinError] = InvalidParameterError,
+                min_count: int = 1) -> np.ndarray:
+    """``value`` as an (N, 2) array of finite pixel coordinates (px), or ``error`` (bound :data:`MAGNITUDE_LIMIT`)."""
+    return point_array(value, name, 2, error=error, min_count=min_count, unit="px")
+
+
+def distance(value, name: str, *, error: type[CarmkinError] = InvalidParameterError, low: float = MIN_DISTANCE,
+             high: float = MAX_DISTANCE, unit: str = "m") -> float:
+    """``value`` as a physical length in [``low``, ``high``] (default 1 µm to 10 m), or ``error``."""
+    return real_scalar(value, name, error=error, low=low, high=high, unit=unit)
+
+
+def joint_index(value, name: str, nq: int, *, names: Sequence[str] | None = None,
+                error: type[CarmkinError] = InvalidParameterError) -> int:
+    """``value`` as a joint index ``0 <= i < nq``: an integer (no bool, no float, no negative alias) or, with
+    ``names``, one of the joint names. Else ``error`` naming the valid range (and names)."""
+    choices = f"an integer in [0, {nq - 1}]" + (f" or one of {', '.join(names)}" if names else "")
+    if isinstance(value, str) and names is not None:
+        if value in names:
+            return list(names).index(value)
+        raise error(f"{name} must be {choices}, got {value!r}")
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or not 0 <= value < nq:
+        raise error(f"{name} must be {choices}, got {_describe(value)}")
+    return int(value)
