@@ -202,6 +202,17 @@ class RenderingError(CarmkinError):
     """Rendering is not available (torch/nanodrr/CT missing) or got bad input."""
 
 
+# --- carmkin.sweeps (3D sweeps) ------------------------------------------------------------------
+
+
+class SweepError(CarmkinError):
+    """A sweep cannot be planned or exported as asked (bad arc, joint, target, export argument)."""
+
+
+class ReconstructionUnavailableError(SweepError):
+    """Simulating or reconstructing a sweep needs the ``cbct`` extra (itk-rtk), which is not installed."""
+
+
 # --- carmkin.viz (the browser viewer) -----------------------------------------------------------------
 
 

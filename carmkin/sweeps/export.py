@@ -1,0 +1,165 @@
+"""A planned sweep's geometry in the conventions of RTK, ASTRA, TIGRE and DICOM (docs/sweeps.md draws them).
+
+Our frame k (:class:`~carmkin.sweeps.plan.Sweep`): source pose ``T_k`` in the table frame 0 (x along image
+columns, y along rows (down), z the principal axis), SDD ``f``, pixel pitch ``(sx, sy)``, principal point
+``(u0, v0)`` px, pixel centres at integer (column, row); ``P_k = K [R_kᵀ | −R_kᵀ s_k]`` maps table-frame m to
+px. Exports express the world in **mm** (the packages' usual unit; ``scale`` changes it), table axes kept.
+
+* **RTK** (``ThreeDCircularProjectionGeometry``): per frame ``AddProjection(source, detector, row, column)``
+  with the detector point = the principal point's foot ``s + f z``, row vector = x, column vector = y.
+  ``GetMatrix(i)`` then maps world mm to *detector physical* mm ``(u, v)`` measured from that foot; the
+  projection stack is an image with spacing ``(sx, sy, 1)`` mm and origin ``(−u0 sx, −v0 sy, 0)`` mm
+  (:func:`rtk_projection_grid`), so pixel (c, r) sits at ``u = (c − u0) sx``, ``v = (r − v0) sy``.
+* **ASTRA** ``cone_vec``: rows ``(src, d, u, v)``: the source, the centre of the detector array (pixel
+  coordinate ((cols − 1)/2, (rows − 1)/2)), u = the step of one column, v = of one row. Data layout
+  (rows, angles, cols); ASTRA's column/row = ours.
+* **TIGRE** arbitrary geometry (``geo.DSD``, ``geo.DSO``, ``geo.angles`` (n, 3) ZYZ Euler,
+  ``geo.offOrigin`` (n, 3) in TIGRE's Python order (z, y, x), ``geo.offDetector`` (n, 2) (v, u),
+  ``geo.rotDetector`` zeros, following TIGRE's ``computeDeltas_Siddon``): the image (volume) frame has the
+  table axes with its centre at ``volume_centre``. TIGRE's detector is left-handed seen from our pinhole
+  (column along +y, row along +z of its local frame, beam along −x): TIGRE projection row ``v`` is our row
+  ``rows − 1 − v`` (flip the rows, ``proj[:, ::-1, :]``); columns agree.
+* **DICOM**: per-frame XA Positioner Primary/Secondary Angle and detector rotation
+  (:func:`carmkin.interop.dicom.xa_angles`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from carmkin.errors import ReconstructionUnavailableError, SweepError
+
+#: World units per metre of the exports (mm).
+MM = 1e3
+
+
+def _frames(sweep):
+    """Source positions s (n, 3) m, rotations R (n, 3, 3), SDD f (m), pitch (sx, sy) m, (u0, v0) px, size."""
+    carm = sweep.system.carm
+    K = carm.intrinsics()
+    return (sweep.poses[:, :3, 3], sweep.poses[:, :3, :3], carm.source_to_detector, carm.pixel_spacing,
+            (K[0, 2], K[1, 2]), (carm.detector_columns, carm.detector_rows))
+
+
+def astra_vectors(sweep, scale: float = MM) -> np.ndarray:
+    """ASTRA ``cone_vec`` rows (n, 12): source, detector centre, u (one column), v (one row); world units
+    ``scale`` per metre (default mm)."""
+    s, R, f, (sx, sy), (u0, v0), (cols, rows) = _frames(sweep)
+    x, y, z = R[:, :, 0], R[:, :, 1], R[:, :, 2]
+    centre = s + f * z + ((cols - 1) / 2 - u0) * sx * x + ((rows - 1) / 2 - v0) * sy * y
+    return np.concatenate((s, centre, sx * x, sy * y), axis=1) * scale
+
+
+def _zyz(M: np.ndarray) -> tuple[float, float, float]:
+    """(α, θ, ψ) with ``M = Rz(α) Ry(θ) Rz(ψ)`` (TIGRE's ``eulerZYZ``)."""
+    theta = math.atan2(math.hypot(M[0, 2], M[1, 2]), M[2, 2])
+    if math.hypot(M[0, 2], M[1, 2]) < 1e-12:  # θ = 0 or π: only α ± ψ is defined; ψ = 0
+        return math.atan2(M[1, 0], M[0, 0]) if M[2, 2] > 0 else math.atan2(-M[1, 0], -M[0, 0]), theta, 0.0
+    return math.atan2(M[1, 2], M[0, 2]), theta, math.atan2(M[2, 1], -M[2, 0])
+
+
+#: Our camera axes (columns x, y, z) in TIGRE's local detector frame, rows flipped: x = +y_T, y = −z_T, z = −x_T.
+CAMERA_IN_TIGRE = np.array([[0.0, 0.0, -1.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
+
+
+def tigre_geometry(sweep, volume_centre=None, scale: float = MM) -> dict:
+    """TIGRE arbitrary-geometry arrays (world units ``scale`` per metre, default mm), keyed by the names of
+    TIGRE's ``Geometry`` attributes: ``DSD``, ``DSO`` (n,), ``angles`` (n, 3), ``offOrigin`` (n, 3) (z, y, x),
+    ``offDetector`` (n, 2) (v, u), ``rotDetector`` (n, 3), ``COR`` (n,), ``nDetector`` (rows, cols),
+    ``dDetector`` (n/a, mm) (v, u). The image centre is ``volume_centre`` (3,) m in the table frame (default
+    the sweep's target); image axes are the table axes. Our image = TIGRE's with its rows flipped."""
+    s, R, f, (sx, sy), (u0, v0), (cols, rows) = _frames(sweep)
+    c = sweep.target if volume_centre is None else np.asarray(volume_centre, dtype=float).reshape(3)
+    z = R[:, :, 2]
+    dso = np.einsum("ni,ni->n", c[None] - s, z)  # the rotation centre: the centre's foot on the principal axis
+    if np.any(dso <= 0):
+        raise SweepError("the volume centre is behind the source in some frame: TIGRE needs DSO > 0")
+    angles = np.array([_zyz(Rk @ CAMERA_IN_TIGRE.T) for Rk in R])
+    off_origin = c[None] - (s + dso[:, None] * z)  # image centre in TIGRE's world (its rotation centre at 0)
+    off_u = ((cols - 1) / 2 - u0) * sx
+    off_v = (v0 - (rows - 1) / 2) * sy
+    n = len(R)
+    return {
+        "DSD": np.full(n, f * scale), "DSO": dso * scale, "angles": angles,
+        "offOrigin": off_origin[:, ::-1] * scale, "offDetector": np.tile([off_v * scale, off_u * scale], (n, 1)),
+        "rotDetector": np.zeros((n, 3)), "COR": np.zeros(n),
+        "nDetector": np.array([rows, cols]), "dDetector": np.array([sy, sx]) * scale,
+    }
+
+
+def positioner_angles(sweep, patient="HFS") -> np.ndarray:
+    """Per-frame XA positioner angles (n, 3) in degrees: primary (LAO +), secondary (CRA +) and the detector
+    rotation about the beam, for a patient on the table (position code or LPS pose, see
+    :func:`carmkin.interop.dicom.xa_angles`); the isocentre of each frame is the target at ``sweep.distance``."""
+    from carmkin.interop.dicom import xa_angles
+
+    return np.array([xa_angles(T, patient) for T in sweep.poses])
+
+
+def _rtk():
+    try:
+        import itk
+        from itk import RTK as rtk
+    except ImportError as exc:  # pragma: no cover - depends on the environment
+        raise ReconstructionUnavailableError(
+            "the RTK export needs the cbct extra: pip install 'carmkin[cbct]' (itk-rtk)") from exc
+    return itk, rtk
+
+
+def rtk_geometry(sweep, scale: float = MM):
+    """An ``rtk.ThreeDCircularProjectionGeometry`` with one ``AddProjection`` per frame (world units ``scale``
+    per metre, default mm; detector coordinates as in :func:`rtk_projection_grid`)."""
+    itk, rtk = _rtk()
+    s, R, f, *_ = _frames(sweep)
+    geometry = rtk.ThreeDCircularProjectionGeometry.New()
+
+    def point(a):
+        p = itk.Point[itk.D, 3]()
+        for i in range(3):
+            p[i] = float(a[i])
+        return p
+
+    def vector(a):
+        v = itk.Vector[itk.D, 3]()
+        for i in range(3):
+            v[i] = float(a[i])
+        return v
+
+    for k in range(len(s)):
+        x, y, z = R[k, :, 0], R[k, :, 1], R[k, :, 2]
+        if not geometry.AddProjection(point(s[k] * scale), point((s[k] + f * z) * scale), vector(x), vector(y)):
+            raise SweepError(f"RTK refused frame {k} (AddProjection returned false)")
+    return geometry
+
+
+def rtk_matrices(geometry) -> np.ndarray:
+    """``GetMatrix(i)`` of every projection of an RTK geometry, (n, 3, 4)."""
+    itk, _ = _rtk()
+    return np.array([itk.array_from_vnl_matrix(geometry.GetMatrix(i).GetVnlMatrix().as_matrix())
+                     for i in range(len(geometry.GetGantryAngles()))])
+
+
+def rtk_projection_grid(sweep, scale: float = MM) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
+    """``(origin (3,), spacing (3,), (cols, rows))`` of the RTK projection stack: pixel (c, r) of frame k sits
+    at detector physical ``(origin[0] + c·spacing[0], origin[1] + r·spacing[1])``, slice k at z = k."""
+    _, _, _, (sx, sy), (u0, v0), size = _frames(sweep)
+    return np.array([-u0 * sx * scale, -v0 * sy * scale, 0.0]), np.array([sx * scale, sy * scale, 1.0]), size
+
+
+def pixel_from_detector(sweep, scale: float = MM) -> np.ndarray:
+    """(3, 3) map of homogeneous RTK detector physical coordinates to our pixels (inverse of the grid)."""
+    origin, spacing, _ = rtk_projection_grid(sweep, scale)
+    return np.array([[1 / spacing[0], 0, -origin[0] / spacing[0]], [0, 1 / spacing[1], -origin[1] / spacing[1]],
+                     [0, 0, 1.0]])
+
+
+def write_rtk_xml(sweep, path, scale: float = MM) -> None:
+    """Write the RTK geometry of ``sweep`` to an XML file (RTK's own writer)."""
+    _, rtk = _rtk()
+    writer = rtk.ThreeDCircularProjectionGeometryXMLFileWriter.New()
+    geometry = rtk_geometry(sweep, scale)  # kept alive: the writer holds a raw pointer to it
+    writer.SetFilename(str(path))
+    writer.SetObject(geometry)
+    writer.WriteFile()
