@@ -5,11 +5,13 @@ columns, y along rows (down), z the principal axis), SDD ``f``, pixel pitch ``(s
 ``(u0, v0)`` px, pixel centres at integer (column, row); ``P_k = K [R_kᵀ | −R_kᵀ s_k]`` maps table-frame m to
 px. Exports express the world in **mm** (the packages' usual unit; ``scale`` changes it), table axes kept.
 
-* **RTK** (``ThreeDCircularProjectionGeometry``): per frame ``AddProjection(source, detector, row, column)``
-  with the detector point = the principal point's foot ``s + f z``, row vector = x, column vector = y.
-  ``GetMatrix(i)`` then maps world mm to *detector physical* mm ``(u, v)`` measured from that foot; the
-  projection stack is an image with spacing ``(sx, sy, 1)`` mm and origin ``(−u0 sx, −v0 sy, 0)`` mm
-  (:func:`rtk_projection_grid`), so pixel (c, r) sits at ``u = (c − u0) sx``, ``v = (r − v0) sy``.
+* **RTK** (``ThreeDCircularProjectionGeometry``): per frame ``AddProjection(source, detector, u, v)``
+  with the detector point = the principal point's foot ``s + f z`` and the detector axes of a layout
+  (:data:`RTK_LAYOUTS`; ``"image"``: u = x, v = y). ``GetMatrix(i)`` then maps world mm to *detector
+  physical* mm ``(u, v)`` measured from that foot: pixel (c, r) sits where
+  ``(c − u0) sx x + (r − v0) sy y = u·u_dir + v·v_dir`` (:func:`pixel_from_detector`); the projection
+  stack's origin and spacing are :func:`rtk_projection_grid` (``"image"``: spacing ``(sx, sy, 1)`` mm,
+  origin ``(−u0 sx, −v0 sy, 0)`` mm).
 * **ASTRA** ``cone_vec``: rows ``(src, d, u, v)``: the source, the centre of the detector array (pixel
   coordinate ((cols − 1)/2, (rows − 1)/2)), u = the step of one column, v = of one row. Data layout
   (rows, angles, cols); ASTRA's column/row = ours.
@@ -108,11 +110,38 @@ def _rtk():
     return itk, rtk
 
 
-def rtk_geometry(sweep, scale: float = MM):
+#: RTK detector layouts: ``"image"`` (u = our x, v = our y: RTK's stack is our image; u × v points away from
+#: the source, which RTK records as negative SID/SDD, a mirror) and ``"rotation"`` (v along the rotation
+#: axis, u = z × v so that u × v points to the source as in RTK's circular convention: needed by its FDK
+#: and Parker weights, which filter along u and read gantry angles about Y).
+RTK_LAYOUTS = ("image", "rotation")
+
+
+def rtk_detector_axes(sweep, layout: str = "image") -> tuple[np.ndarray, np.ndarray]:
+    """Unit vectors (u, v) of the RTK detector axes in our source frame for ``layout`` (:data:`RTK_LAYOUTS`)."""
+    if layout == "image":
+        return np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
+    if layout != "rotation":
+        raise SweepError(f"layout must be one of {', '.join(RTK_LAYOUTS)}, got {layout!r}")
+    from .trajectory import rotation_axis
+
+    mid = sweep.n_views // 2
+    a = rotation_axis(sweep.system, sweep.q_plain[mid], sweep.weights)
+    k = int(np.argmax(np.abs(a[:2])))
+    if abs(a[k]) < 1.0 - 1e-9:
+        raise SweepError("the rotation axis is not along an image axis: the 'rotation' layout would need resampling "
+                         f"(axis in the source frame {np.round(a, 6).tolist()})")
+    v = np.zeros(3)
+    v[k] = math.copysign(1.0, a[k])
+    return np.cross([0.0, 0.0, 1.0], v), v
+
+
+def rtk_geometry(sweep, scale: float = MM, layout: str = "image"):
     """An ``rtk.ThreeDCircularProjectionGeometry`` with one ``AddProjection`` per frame (world units ``scale``
-    per metre, default mm; detector coordinates as in :func:`rtk_projection_grid`)."""
+    per metre, default mm): source, the principal point's foot, and the detector axes of ``layout``."""
     itk, rtk = _rtk()
     s, R, f, *_ = _frames(sweep)
+    u_dir, v_dir = rtk_detector_axes(sweep, layout)
     geometry = rtk.ThreeDCircularProjectionGeometry.New()
 
     def point(a):
@@ -128,8 +157,8 @@ def rtk_geometry(sweep, scale: float = MM):
         return v
 
     for k in range(len(s)):
-        x, y, z = R[k, :, 0], R[k, :, 1], R[k, :, 2]
-        if not geometry.AddProjection(point(s[k] * scale), point((s[k] + f * z) * scale), vector(x), vector(y)):
+        if not geometry.AddProjection(point(s[k] * scale), point((s[k] + f * R[k, :, 2]) * scale),
+                                      vector(R[k] @ u_dir), vector(R[k] @ v_dir)):
             raise SweepError(f"RTK refused frame {k} (AddProjection returned false)")
     return geometry
 
@@ -141,25 +170,50 @@ def rtk_matrices(geometry) -> np.ndarray:
                      for i in range(len(geometry.GetGantryAngles()))])
 
 
-def rtk_projection_grid(sweep, scale: float = MM) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
-    """``(origin (3,), spacing (3,), (cols, rows))`` of the RTK projection stack: pixel (c, r) of frame k sits
-    at detector physical ``(origin[0] + c·spacing[0], origin[1] + r·spacing[1])``, slice k at z = k."""
-    _, _, _, (sx, sy), (u0, v0), size = _frames(sweep)
-    return np.array([-u0 * sx * scale, -v0 * sy * scale, 0.0]), np.array([sx * scale, sy * scale, 1.0]), size
+def pixel_from_detector(sweep, scale: float = MM, layout: str = "image") -> np.ndarray:
+    """(3, 3) map of homogeneous RTK detector physical coordinates (u, v, 1) to our pixels (c, r, 1):
+    ``(c − u0) sx = u (u_dir·x) + v (v_dir·x)``, ``(r − v0) sy = u (u_dir·y) + v (v_dir·y)``."""
+    _, _, _, (sx, sy), (u0, v0), _ = _frames(sweep)
+    u_dir, v_dir = rtk_detector_axes(sweep, layout)
+    return np.array([[u_dir[0] / (sx * scale), v_dir[0] / (sx * scale), u0],
+                     [u_dir[1] / (sy * scale), v_dir[1] / (sy * scale), v0], [0.0, 0.0, 1.0]])
 
 
-def pixel_from_detector(sweep, scale: float = MM) -> np.ndarray:
-    """(3, 3) map of homogeneous RTK detector physical coordinates to our pixels (inverse of the grid)."""
-    origin, spacing, _ = rtk_projection_grid(sweep, scale)
-    return np.array([[1 / spacing[0], 0, -origin[0] / spacing[0]], [0, 1 / spacing[1], -origin[1] / spacing[1]],
-                     [0, 0, 1.0]])
+def rtk_projection_grid(sweep, scale: float = MM, layout: str = "image"):
+    """``(origin (3,), spacing (3,), size (3,))`` of the RTK projection stack (frame k at z = k): its index
+    (i, j) along (u, v) is one of our pixels — ``to_rtk_stack`` reorders our images accordingly."""
+    _, _, _, (sx, sy), (u0, v0), (cols, rows) = _frames(sweep)
+    origin, spacing, size = [], [], []
+    for d in rtk_detector_axes(sweep, layout):
+        along_x = abs(d[0]) > 0.5
+        pitch, centre, count = (sx, u0, cols) if along_x else (sy, v0, rows)
+        sign = d[0] if along_x else d[1]
+        # physical = sign·(pixel − centre)·pitch; index = pixel (sign +) or count − 1 − pixel (sign −)
+        first = -centre if sign > 0 else -(count - 1 - centre)
+        origin.append(first * pitch * scale)
+        spacing.append(pitch * scale)
+        size.append(count)
+    return np.array(origin + [0.0]), np.array(spacing + [1.0]), (size[0], size[1], sweep.n_views)
 
 
-def write_rtk_xml(sweep, path, scale: float = MM) -> None:
+def to_rtk_stack(sweep, images: np.ndarray, layout: str = "image") -> np.ndarray:
+    """Our images (n, rows, cols) as the RTK stack array (n, size_v, size_u) of :func:`rtk_projection_grid`."""
+    u_dir, v_dir = rtk_detector_axes(sweep, layout)
+    out = np.asarray(images)
+    if abs(u_dir[0]) < 0.5:  # u along our rows: transpose to (n, cols, rows)
+        out = out.transpose(0, 2, 1)
+    if (u_dir[0] + u_dir[1]) < 0:
+        out = out[:, :, ::-1]
+    if (v_dir[0] + v_dir[1]) < 0:
+        out = out[:, ::-1, :]
+    return np.ascontiguousarray(out)
+
+
+def write_rtk_xml(sweep, path, scale: float = MM, layout: str = "image") -> None:
     """Write the RTK geometry of ``sweep`` to an XML file (RTK's own writer)."""
     _, rtk = _rtk()
     writer = rtk.ThreeDCircularProjectionGeometryXMLFileWriter.New()
-    geometry = rtk_geometry(sweep, scale)  # kept alive: the writer holds a raw pointer to it
+    geometry = rtk_geometry(sweep, scale, layout)  # kept alive: the writer holds a raw pointer to it
     writer.SetFilename(str(path))
     writer.SetObject(geometry)
     writer.WriteFile()

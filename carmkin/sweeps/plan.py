@@ -15,7 +15,7 @@ from carmkin.errors import SweepError
 from carmkin.validation import real_array, real_scalar
 
 from . import trajectory as tr
-from .clearance import DEFAULT_TOLERANCE, SweptClearance
+from .clearance import DEFAULT_TOLERANCE, DISTANCE_ACCURACY, SweptClearance
 
 #: Default clearance (m) kept along the whole arc to patient, table and floor.
 DEFAULT_MARGIN = 0.01
@@ -302,6 +302,17 @@ def plan_sweep(system, target, arc_deg: float = 190.0, n_views: int = 100, patie
         d = checker.distances(q[k])
         samples += 1
         sampled = min(sampled, float(d.min()))
+        if d_prev is not None:  # the segment from the previous frame (it stops at a contact before this frame)
+            check = checker.segment(q[k - 1], q[k], d_prev, sampled)
+            samples += check.samples
+            sampled = min(sampled, check.sampled_min)
+            seg_ok[k - 1] = check.contact_t is None
+            if check.contact_t is None:
+                bound = min(bound, check.bound)
+            elif first is None:
+                angle = float(phi[k - 1] + check.contact_t * (phi[k] - phi[k - 1]))
+                first = SweepFailure(Limit.CONTACT, angle, k - 1, None, pair=scene.link_pairs()[check.pair],
+                                     distance=check.bound + DISTANCE_ACCURACY)
         if d.min() < margin:
             frame_ok[k] = False
             i = int(np.argmin(d))
@@ -310,16 +321,6 @@ def plan_sweep(system, target, arc_deg: float = 190.0, n_views: int = 100, patie
             d_prev = None
             continue
         bound = min(bound, float(d.min()))
-        if d_prev is not None:
-            check = checker.segment(q[k - 1], q[k], d_prev, sampled)
-            samples += check.samples
-            sampled = min(sampled, check.sampled_min)
-            bound = min(bound, check.bound)
-            seg_ok[k - 1] = check.contact_t is None
-            if check.contact_t is not None and first is None:
-                angle = float(phi[k - 1] + check.contact_t * (phi[k] - phi[k - 1]))
-                first = SweepFailure(Limit.CONTACT, angle, k - 1, None, pair=scene.link_pairs()[check.pair],
-                                     distance=check.bound + 1e-6)
         d_prev = d
     if first is not None:
         first = SweepFailure(first.kind, first.angle, first.frame, _largest_run(phi, frame_ok, seg_ok), first.joint,
@@ -330,6 +331,7 @@ def plan_sweep(system, target, arc_deg: float = 190.0, n_views: int = 100, patie
     K, _ = intrinsics(system)
     R_t = np.transpose(poses[:, :3, :3], (0, 2, 1))
     P = K[None] @ np.concatenate((R_t, -R_t @ poses[:, :3, 3:4]), axis=2)
+    bound = bound if np.isfinite(bound) else math.nan  # nothing feasible was checked
     return Sweep(system, q, phi, poses, P, target, float(distance), bool(compensate), w, q_plain, drift,
                  float(bound), float(sampled), samples, float(margin), limiting, extent,
                  ShortScan(arc, fan), first, obstacles)

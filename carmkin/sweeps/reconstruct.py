@@ -32,6 +32,8 @@ from .trajectory import rotation_axis
 #: The voxel size, phantom scale and field of view used unless told otherwise (mm).
 DEFAULT_VOLUME_MM = 140.0
 DEFAULT_PHANTOM_MM = 60.0
+#: RTK detector layout of the simulation: v along the rotation axis (FDK filters along u).
+LAYOUT = "rotation"
 #: Joint encoder noise of the study (1 σ): 0.1° on revolute, 0.5 mm on prismatic joints (assumption).
 ENCODER_SIGMA = (math.radians(0.1), 0.0005)
 
@@ -122,9 +124,9 @@ def forward_project(sweep, volume_image):
     """Joseph projections (itk image: columns × rows × frames) of ``volume_image`` along ``sweep`` (its
     poses in the volume's frame, mm)."""
     itk, rtk = _itk()
-    geometry = export.rtk_geometry(sweep)
-    origin, spacing, (cols, rows) = export.rtk_projection_grid(sweep)
-    stack = _image((cols, rows, sweep.n_views), spacing, origin)
+    geometry = export.rtk_geometry(sweep, layout=LAYOUT)
+    origin, spacing, size = export.rtk_projection_grid(sweep, layout=LAYOUT)
+    stack = _image(size, spacing, origin)
     joseph = rtk.JosephForwardProjectionImageFilter[itk.Image[itk.F, 3], itk.Image[itk.F, 3]].New()
     joseph.SetInput(0, stack)
     joseph.SetInput(1, volume_image)
@@ -136,7 +138,7 @@ def forward_project(sweep, volume_image):
 def fdk(sweep, projections, volume: Volume) -> np.ndarray:
     """Parker-weighted FDK of ``projections`` with the geometry of ``sweep`` → (z, y, x) float array."""
     itk, rtk = _itk()
-    geometry = export.rtk_geometry(sweep)
+    geometry = export.rtk_geometry(sweep, layout=LAYOUT)
     image = itk.Image[itk.F, 3]
     parker = rtk.ParkerShortScanImageFilter[image].New()
     parker.SetInput(projections)
