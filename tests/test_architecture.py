@@ -21,7 +21,8 @@ LAYERS = (
     ("carmkin.robot",),
     ("carmkin.analytic", "carmkin.analytic_ik"),
     ("carmkin.qp", "carmkin.qp_ik", "carmkin.singularity"),
-    ("carmkin.studies", "carmkin.imaging", "carmkin.reposition", "carmkin.interop", "carmkin.plots"),
+    ("carmkin.studies", "carmkin.imaging", "carmkin.reposition", "carmkin.interop", "carmkin.plots",
+     "carmkin.sweeps"),
     ("carmkin.viz",),
     ("carmkin.commands", "carmkin.cli"),
 )

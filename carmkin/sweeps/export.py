@@ -101,12 +101,23 @@ def positioner_angles(sweep, patient="HFS") -> np.ndarray:
 
 
 def _rtk():
+    """``(itk, rtk)``, or :class:`ReconstructionUnavailableError` naming the extra. Loading RTK's wrappers
+    takes tens of seconds the first time in a process (ITK's lazy loading); SWIG's import-time
+    DeprecationWarnings are silenced, and ITK's warning display is turned off: the one warning RTK gives
+    here (Parker weights of a scan shorter than 180° + fan) is stated by :class:`~.plan.ShortScan`."""
+    import warnings
+
     try:
-        import itk
-        from itk import RTK as rtk
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)
+            import itk
+            from itk import RTK as rtk
+
+            rtk.ThreeDCircularProjectionGeometry  # noqa: B018 (loads the wrappers inside the filter)
     except ImportError as exc:  # pragma: no cover - depends on the environment
         raise ReconstructionUnavailableError(
             "the RTK export needs the cbct extra: pip install 'carmkin[cbct]' (itk-rtk)") from exc
+    itk.Object.GlobalWarningDisplayOff()
     return itk, rtk
 
 

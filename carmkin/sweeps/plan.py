@@ -90,7 +90,8 @@ class Sweep:
     ``compensated``: frames keep the target on the axis; ``q_plain`` (n, nq) and ``drift`` (n,) m of the
     plain joint rotation; ``min_clearance``: certified swept lower bound (m) of every pair's distance over
     the arc (``sampled_clearance``: smallest exact distance at the samples; samples made ``clearance_samples``);
-    ``margin`` (m); ``limiting_joint`` with ``joint_extent`` (φ_min, φ_max) rad allowed by the joint ranges
+    ``margin`` (m); ``frame_clearance`` (n,) smallest pair distance at each frame (m, NaN where not checked);
+    ``limiting_joint`` with ``joint_extent`` (φ_min, φ_max) rad allowed by the joint ranges
     on this trajectory; ``short_scan`` (:class:`ShortScan`); ``failure`` (:class:`SweepFailure`, None on
     success); ``success``.
     """
@@ -113,6 +114,7 @@ class Sweep:
     limiting_joint: str | None
     joint_extent: tuple[float, float]
     short_scan: ShortScan
+    frame_clearance: np.ndarray
     failure: SweepFailure | None = None
     obstacles: tuple = field(default=())
 
@@ -293,6 +295,7 @@ def plan_sweep(system, target, arc_deg: float = 190.0, n_views: int = 100, patie
     seg_ok = np.zeros(max(len(phi) - 1, 0), dtype=bool)
     bound, sampled, samples = np.inf, np.inf, 0
     d_prev = None
+    frame_clearance = np.full(len(phi), np.nan)
     for k in range(len(phi)):
         if not ok[k]:
             kind = Limit.UNREACHABLE if not reached[k] else Limit.JOINT_LIMIT
@@ -300,6 +303,7 @@ def plan_sweep(system, target, arc_deg: float = 190.0, n_views: int = 100, patie
             d_prev = None
             continue
         d = checker.distances(q[k])
+        frame_clearance[k] = float(d.min())
         samples += 1
         sampled = min(sampled, float(d.min()))
         if d_prev is not None:  # the segment from the previous frame (it stops at a contact before this frame)
@@ -334,7 +338,7 @@ def plan_sweep(system, target, arc_deg: float = 190.0, n_views: int = 100, patie
     bound = bound if np.isfinite(bound) else math.nan  # nothing feasible was checked
     return Sweep(system, q, phi, poses, P, target, float(distance), bool(compensate), w, q_plain, drift,
                  float(bound), float(sampled), samples, float(margin), limiting, extent,
-                 ShortScan(arc, fan), first, obstacles)
+                 ShortScan(arc, fan), frame_clearance, first, obstacles)
 
 
 def _largest_run(phi, frame_ok, seg_ok) -> tuple[float, float] | None:
