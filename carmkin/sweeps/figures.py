@@ -46,7 +46,7 @@ def study(results, path=None):
     images = [("phantom", results[0].phantom)] + [(f"{r.label.split('(')[0]}\nRMSE {r.rmse:.3f}", r.volume)
                                                   for r in results]
     for k, (label, volume) in enumerate(images):
-        axes[0, k].imshow(volume[:, c, :], cmap="gray", vmin=0.0, vmax=0.5)
+        axes[0, k].imshow(volume[:, c, :], cmap="gray", vmin=0.9, vmax=1.1)  # soft-tissue window of the phantom
         axes[0, k].set_title(label, fontsize=8)
         axes[0, k].axis("off")
     for k in range(1, n + 1):
