@@ -5,7 +5,7 @@ one per CPU), in a scratch folder so that files it writes do not land in the rep
 the build (``mkdocs build --strict`` then exits non-zero). The executed copy is written to
 ``docs/notebooks/`` (git-ignored), which mkdocs-jupyter renders as it is (``execute: false`` in mkdocs.yml:
 the execution happened here). Executed copies are cached in ``build/notebooks/`` under a hash of the
-notebook and of carmkin's sources, so an unchanged notebook is not run twice (``tests/test_notebooks.py``
+notebook and of carmkin's sources (the CLI's modules aside), so an unchanged notebook is not run twice (``tests/test_notebooks.py``
 reads the same cache). Every notebook and every docs page missing from ``nav`` is appended to it, so a new
 page or notebook is in the site without an edit of mkdocs.yml (add a nav line to place it elsewhere).
 """
@@ -38,7 +38,7 @@ def _sources_digest() -> str:
     digest = hashlib.sha256()
     for folder in ("carmkin", "viz", "urdf"):
         for path in sorted((ROOT / folder).rglob("*")):
-            if path.is_file() and path.suffix in (".py", ".toml", ".xacro"):
+            if path.is_file() and path.suffix in (".py", ".toml", ".xacro") and "commands" not in path.parts:
                 digest.update(path.relative_to(ROOT).as_posix().encode() + path.read_bytes())
     return digest.hexdigest()
 
