@@ -102,7 +102,8 @@ def test_every_python_block_runs_as_written(path, tmp_path, monkeypatch):
 
 
 def test_blocks_that_are_not_run_say_why():
-    marked = [(p.name, line, not_run_reason(s)) for p in PAGES for line, s in page_blocks(p) if not_run_reason(s) is not None]
+    marked = [(p.name, line, not_run_reason(s))
+              for p in PAGES for line, s in page_blocks(p) if not_run_reason(s) is not None]
     assert all(reason for _, _, reason in marked), marked
 
 

@@ -5,8 +5,8 @@ one per CPU), in a scratch folder so that files it writes do not land in the rep
 the build (``mkdocs build --strict`` then exits non-zero). The executed copy is written to
 ``docs/notebooks/`` (git-ignored), which mkdocs-jupyter renders as it is (``execute: false`` in mkdocs.yml:
 the execution happened here). Executed copies are cached in ``build/notebooks/`` under a hash of the
-notebook and of carmkin's sources (the CLI's modules aside), so an unchanged notebook is not run twice (``tests/test_notebooks.py``
-reads the same cache). Every notebook and every docs page missing from ``nav`` is appended to it, so a new
+notebook and of carmkin's sources (the CLI's modules aside), so an unchanged notebook is not run twice
+(``tests/test_notebooks.py`` reads the same cache). Every notebook and every docs page missing from ``nav`` is appended to it, so a new
 page or notebook is in the site without an edit of mkdocs.yml (add a nav line to place it elsewhere).
 """
 
