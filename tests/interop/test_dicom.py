@@ -223,8 +223,10 @@ def test_missing_geometry_is_reported():
     pydicom = pytest.importorskip("pydicom")
     from carmkin.interop import dicom_io
 
-    with pytest.raises(dicom.DicomGeometryError, match="PositionerPrimaryAngle"):
+    with pytest.raises(dicom.DicomGeometryError, match=r"PatientPosition \(0018,5100\) is required"):
         dicom_io.view_from_dataset(pydicom.Dataset())
+    with pytest.raises(dicom.DicomGeometryError, match=r"PositionerPrimaryAngle \(0018,1510\) is required"):
+        dicom_io.view_from_dataset(pydicom.Dataset(), patient_position="HFS")
 
 
 def test_moves_reproduce_the_view_of_a_dicom_image():
