@@ -236,7 +236,8 @@ def _configuration(system, q, name: str = "q") -> np.ndarray:
 
 def equipment_axes(system, q) -> np.ndarray:
     """Isocentre axes (3, 3, columns X, Y, Z) in the table frame, fixed to the C-arm base (DH frame 2)."""
-    return system.dh_frames(_configuration(system, q))[1][:3, :3] @ ISOCENTER_IN_FRAME2
+    q = _configuration(system, q)
+    return system.dh_frames(q)[1][:3, :3] @ ISOCENTER_IN_FRAME2
 
 
 def isocenter_frame(system, q, source_to_isocenter: float | None = None) -> np.ndarray:

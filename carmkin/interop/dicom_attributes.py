@@ -60,6 +60,8 @@ def tag_text(keyword: str) -> str:
     """``"(gggg,eeee)"`` of a keyword, from pydicom's data dictionary."""
     from pydicom.datadict import tag_for_keyword
 
+    if not isinstance(keyword, str):
+        raise DicomGeometryError(f"keyword must be a DICOM keyword (str), got {_describe(keyword)}")
     tag = tag_for_keyword(keyword)
     return "(?)" if tag is None else f"({tag >> 16:04X},{tag & 0xFFFF:04X})"
 
@@ -92,6 +94,9 @@ def _value(ds, keyword: str):
 
 def read_number(ds, keyword: str) -> float:
     """The value of a numeric attribute of :data:`ATTRIBUTES` (deg or mm), checked (module docstring)."""
+    check_dataset(ds)
+    if not isinstance(keyword, str) or keyword not in ATTRIBUTES:
+        raise DicomGeometryError(f"keyword must be one of {', '.join(ATTRIBUTES)}, got {_describe(keyword)}")
     spec = ATTRIBUTES[keyword]
     value = _value(ds, keyword)
     if value is None and keyword not in ds:
@@ -112,19 +117,19 @@ def read_number(ds, keyword: str) -> float:
     return number
 
 
-def read_patient_position(ds, default: str | None = None) -> str:
+def read_patient_position(ds, patient_position: str | None = None) -> str:
     """Patient Position (0018,5100): one of HFS, HFP, HFDR, HFDL, FFS, FFP, FFDR, FFDL. Missing or empty:
-    ``default`` if the caller passes one (checked the same way), else :class:`DicomAttributeError` — a
+    ``patient_position`` if the caller passes one (checked the same way), else :class:`DicomAttributeError` — a
     patient-based angle means nothing without it, and no position is assumed silently."""
     from carmkin.imaging.projection import PATIENT_POSITIONS
 
     keyword = "PatientPosition"
-    value = _value(ds, keyword)
+    value = _value(check_dataset(ds), keyword)
     if value is None or value == "":
-        if default is None:
+        if patient_position is None:
             raise _error(keyword, "is required to place the patient (XA angles are patient-based) and the dataset "
                                   "has none; pass patient_position= (e.g. 'HFS') to assume one")
-        value, keyword = default, "patient_position"
+        value, keyword = patient_position, "patient_position"
     if not isinstance(value, str) or value.strip().upper() not in PATIENT_POSITIONS:
         text = f"must be one of {', '.join(PATIENT_POSITIONS)}, got {_describe(value)}"
         if keyword == "patient_position":
@@ -135,7 +140,8 @@ def read_patient_position(ds, default: str | None = None) -> str:
 
 def sequence_items(ds, keyword: str) -> list:
     """The items (Datasets) of sequence ``keyword`` in ``ds``; ``[]`` when absent or empty."""
-    value = _value(ds, keyword)
+    tag_text(keyword)  # a str keyword
+    value = _value(check_dataset(ds), keyword)
     if value is None or (isinstance(value, (str, bytes)) and not value):
         return []
     if isinstance(value, (str, bytes)) or not hasattr(value, "__iter__"):

@@ -7,12 +7,15 @@ attributes and for round-trip tests. Attribute keywords are pydicom's (PS3.6 nam
 
 from __future__ import annotations
 
+import os
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
 from carmkin import validation
 from carmkin.interop import dicom
+from carmkin.errors import DicomAttributeError
 from carmkin.interop.dicom import MM, DicomGeometryError
 from carmkin.interop.dicom_attributes import (
     check_dataset,
@@ -117,6 +120,20 @@ def write_enhanced_xa(system, q, source_to_isocenter: float | None = None, patie
     return ds
 
 
+def read_file(path):
+    """``pydicom.dcmread(path)``, or :class:`DicomGeometryError` ("cannot read PATH: ...") for a file that is
+    missing, not DICOM or malformed; pydicom's warnings while reading are not passed on."""
+    pydicom = require_pydicom()
+    if not isinstance(path, (str, os.PathLike)):
+        raise DicomGeometryError(f"path must be a file path, got {validation._describe(path)}")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            return pydicom.dcmread(path)
+        except Exception as exc:  # OSError, InvalidDicomError, and whatever a truncated file raises
+            raise DicomGeometryError(f"cannot read {os.fspath(path)}: {type(exc).__name__}: {exc}") from None
+
+
 def read_isocenter_geometry(ds, frame: int = 0, *, convention: str = dicom.DEFAULT_CONVENTION) -> dicom.IsocenterGeometry:
     """The Isocenter Reference System of an Enhanced XA dataset: from the per-frame functional group
     ``frame`` (0-based) where the dataset has per-frame groups and that group carries the macro, else from the
@@ -134,6 +151,9 @@ def read_isocenter_geometry(ds, frame: int = 0, *, convention: str = dicom.DEFAU
                                  f"(5200,9230)), got {frame}")
     groups.extend(per_frame[frame:frame + 1])
     groups.extend(sequence_items(ds, "SharedFunctionalGroupsSequence")[:1])
+    if not groups:
+        raise DicomAttributeError("SharedFunctionalGroupsSequence (5200,9229) is required (Enhanced XA), the dataset "
+                                  "has no functional groups", "SharedFunctionalGroupsSequence", "(5200,9229)")
     iso = sequence_item(groups, "IsocenterReferenceSystemSequence")
     geometry = sequence_item(groups, "XRayGeometrySequence")
     values = {keyword: read_number(iso, keyword) for keyword in (
@@ -166,9 +186,15 @@ def view_from_dataset(ds, isocenter=None, patient_origin=(0.0, 0.0, 0.0), *, fra
     passed through, e.g. the anatomy of interest; default: the patient origin — and the Patient Position: the
     dataset's, or ``patient_position`` where the dataset has none (never assumed)."""
     check_dataset(ds)
-    if "SharedFunctionalGroupsSequence" in ds or "PerFrameFunctionalGroupsSequence" in ds:
+    enhanced = str(ds.get("SOPClassUID", "")) == ENHANCED_XA_SOP_CLASS
+    if enhanced or "SharedFunctionalGroupsSequence" in ds or "PerFrameFunctionalGroupsSequence" in ds:
         geometry = read_isocenter_geometry(ds, frame, convention=convention)
         return DicomView(geometry.source_pose(), "isocenter reference system")
+    if "PositionerPrimaryAngle" not in ds:
+        raise DicomAttributeError(
+            "the dataset has no geometry: neither functional groups with an Isocenter Reference System (Enhanced "
+            "XA, SharedFunctionalGroupsSequence (5200,9229)) nor PositionerPrimaryAngle (0018,1510) (XA)",
+            "PositionerPrimaryAngle", "(0018,1510)")
     origin = validation.real_array(patient_origin, "patient_origin", (3,), error=DicomGeometryError, unit="m")
     T_patient = dicom.patient_pose(read_patient_position(ds, patient_position), origin)
     isocenter = T_patient[:3, 3] if isocenter is None else isocenter
