@@ -205,7 +205,8 @@ def projection_matrix(value, name: str = "P", *, error: type[CarmkinError] = Inv
     ``error``. In the normalised P, ``P[2] @ (X, 1)`` is the depth (in world units) of a world point X.
     """
     P = real_array(value, name, (3, 4), error=error, limit=None)
-    scale = float(np.linalg.norm(P[2, :3]))
+    big = float(np.abs(P[2, :3]).max())  # the norm taken after dividing by the largest entry: no overflow
+    scale = big * float(np.linalg.norm(P[2, :3] / big)) if big > 0.0 else 0.0
     if not np.isfinite(scale) or scale == 0.0:
         raise error(f"{name} must be a projection matrix with a non-zero third row, got P[2, :3] = {P[2, :3]}")
     with np.errstate(all="ignore"):
