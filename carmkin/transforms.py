@@ -14,7 +14,14 @@ import math
 import numpy as np
 
 from carmkin.errors import CarmkinError, InvalidParameterError, InvalidPoseError
-from carmkin.validation import JOINT_VALUE_LIMIT, MAGNITUDE_LIMIT, RIGID_TOLERANCE, real_array, real_scalar, rigid_transform
+from carmkin.validation import (
+    JOINT_VALUE_LIMIT,
+    MAGNITUDE_LIMIT,
+    RIGID_TOLERANCE,
+    real_array,
+    real_scalar,
+    rigid_transform,
+)
 
 # RIGID_TOLERANCE (1e-9, on ||R^T R - I|| and |det R - 1|) is defined once in carmkin.validation.
 #: Largest ``||R^T R - I||_F`` (and deviation of the last row from [0, 0, 0, 1]) that :func:`nearest_rigid`

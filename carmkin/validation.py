@@ -267,3 +267,17 @@ def joint_index(value, name: str, nq: int, *, names: Sequence[str] | None = None
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or not 0 <= value < nq:
         raise error(f"{name} must be {choices}, got {_describe(value)}")
     return int(value)
+
+
+def integer(value, name: str, *, low: int | None = None, high: int | None = None,
+            error: type[CarmkinError] = InvalidParameterError, unit: str = "") -> int:
+    """``value`` as a Python int within [``low``, ``high``] (a count, a size in pixels, a seed), or ``error``.
+
+    An ``int`` or numpy integer only: no bool, no float (``2.0`` is refused, never truncated), no string.
+    """
+    unit_text = f" {unit}" if unit else ""
+    bounds = f" in [{'-inf' if low is None else low}, {'inf' if high is None else high}]{unit_text}"
+    if (isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer))
+            or (low is not None and value < low) or (high is not None and value > high)):
+        raise error(f"{name} must be an integer{bounds}, got {_describe(value)}")
+    return int(value)

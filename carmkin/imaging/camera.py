@@ -20,7 +20,16 @@ from carmkin.errors import (
     ImagingError,  # noqa: F401 (defined there, raised here)
 )
 from carmkin.transforms import check_rigid_transform
-from carmkin.validation import MAGNITUDE_LIMIT, MIN_DISTANCE, intrinsics, point_array, real_array, real_scalar, rotation
+from carmkin.validation import (
+    MAGNITUDE_LIMIT,
+    MIN_DISTANCE,
+    integer,
+    intrinsics,
+    point_array,
+    real_array,
+    real_scalar,
+    rotation,
+)
 
 #: Tolerance on ``|‖n‖ − 1|`` of a plane's unit normal (dimensionless).
 UNIT_TOLERANCE = 1e-9
@@ -51,11 +60,8 @@ def _intrinsics(K, name: str = "K") -> np.ndarray:
 
 def _size(columns, rows) -> tuple[int, int]:
     """An image size in pixels: two integers in [1, MAX_IMAGE_SIDE] (no bool, no float)."""
-    for name, value in (("columns", columns), ("rows", rows)):
-        if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or not (
-                1 <= value <= MAX_IMAGE_SIDE):
-            raise ImagingError(f"{name} must be an integer number of pixels in [1, {MAX_IMAGE_SIDE}], got {value!r}")
-    return int(columns), int(rows)
+    return (integer(columns, "columns", low=1, high=MAX_IMAGE_SIDE, error=ImagingError, unit="px"),
+            integer(rows, "rows", low=1, high=MAX_IMAGE_SIDE, error=ImagingError, unit="px"))
 
 
 def _plane(n, d, name: str = "plane") -> tuple[np.ndarray, float]:
@@ -201,9 +207,7 @@ def rotation_between(a, b) -> np.ndarray:
 def image_border(columns: int, rows: int, per_edge: int = 16) -> np.ndarray:
     """Closed outline (4·per_edge + 1, 2) of the detector in pixels, along the pixel edges (−0.5 … size−0.5)."""
     columns, rows = _size(columns, rows)
-    if isinstance(per_edge, (bool, np.bool_)) or not isinstance(per_edge, (int, np.integer)) or not (
-            1 <= per_edge <= MAX_IMAGE_SIDE):
-        raise ImagingError(f"per_edge must be an integer in [1, {MAX_IMAGE_SIDE}], got {per_edge!r}")
+    per_edge = integer(per_edge, "per_edge", low=1, high=MAX_IMAGE_SIDE, error=ImagingError)
     u0, u1, v0, v1 = -0.5, columns - 0.5, -0.5, rows - 0.5
     s = np.linspace(0.0, 1.0, per_edge, endpoint=False)
     edges = [

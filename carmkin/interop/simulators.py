@@ -41,7 +41,16 @@ from carmkin.errors import (
 )
 from carmkin.model.kinematics import check_configuration
 from carmkin.transforms import check_rigid_transform, inverse
-from carmkin.validation import MAX_DISTANCE, MAX_FOCAL_PX, MIN_DISTANCE, distance, intrinsics, real_array, real_scalar
+from carmkin.validation import (
+    MAX_DISTANCE,
+    MAX_FOCAL_PX,
+    MIN_DISTANCE,
+    distance,
+    integer,
+    intrinsics,
+    real_array,
+    real_scalar,
+)
 
 #: Millimetres per metre: simulators speak mm, the library m.
 MM = 1000.0
@@ -98,9 +107,7 @@ class Detector:
 
 
 def _pixels(value, name: str) -> int:
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or not 1 <= value <= MAX_PIXELS:
-        raise SimulatorConventionError(f"{name} must be an integer number of pixels in [1, {MAX_PIXELS}], got {value!r}")
-    return int(value)
+    return integer(value, name, low=1, high=MAX_PIXELS, error=SimulatorConventionError, unit="px")
 
 
 def _size(size) -> tuple[int, int]:
