@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from carmkin import validation
+from carmkin.extras import require
 from carmkin.interop import dicom
 from carmkin.errors import DicomAttributeError
 from carmkin.interop.dicom import MM, DicomGeometryError
@@ -30,11 +31,7 @@ ENHANCED_XA_SOP_CLASS = "1.2.840.10008.5.1.4.1.1.12.1.1"  # Enhanced XA Image St
 
 
 def require_pydicom():
-    try:
-        import pydicom
-    except ImportError as exc:  # pragma: no cover - exercised only without the extra
-        raise DicomGeometryError("reading/writing DICOM needs pydicom: pip install 'carmkin[dicom]'") from exc
-    return pydicom
+    return require("pydicom", "dicom")
 
 
 def _base(sop_class: str, system):
