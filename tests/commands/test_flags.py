@@ -11,8 +11,9 @@ import re
 import pytest
 
 import carmkin
-from carmkin.cli import build_parser, main
+from carmkin.cli import build_parser
 from carmkin.commands._common import JOINTS_FLAG, JOINTS_METAVAR
+from test_cli import cli as run  # noqa: E402 (tests/commands is on sys.path)
 
 #: The names each command used before the one name (kept hidden for one release).
 FORMER = {"view": "--q", "ik": "--current", "panorama shot": "--reference-q-mm-deg"}
@@ -29,15 +30,6 @@ def parsers(parser: argparse.ArgumentParser | None = None, prefix: str = "") -> 
             for name, child in action.choices.items():
                 found |= parsers(child, f"{prefix} {name}".strip())
     return found or {prefix: parser}
-
-
-def run(argv, capsys):
-    try:
-        code = main([str(a) for a in argv])
-    except SystemExit as exc:
-        code = exc.code
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def test_every_command_that_takes_a_configuration_names_it_the_same():
