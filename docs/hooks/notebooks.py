@@ -6,8 +6,10 @@ the build (``mkdocs build --strict`` then exits non-zero). The executed copy is 
 ``docs/notebooks/`` (git-ignored), which mkdocs-jupyter renders as it is (``execute: false`` in mkdocs.yml:
 the execution happened here). Executed copies are cached in ``build/notebooks/`` under a hash of the
 notebook and of carmkin's sources (the CLI's modules aside), so an unchanged notebook is not run twice
-(``tests/test_notebooks.py`` reads the same cache). Every notebook and every docs page missing from ``nav`` is appended to it, so a new
-page or notebook is in the site without an edit of mkdocs.yml (add a nav line to place it elsewhere).
+(``tests/test_notebooks.py`` reads the same cache). Every notebook and every docs page missing from ``nav``
+is appended to it, so a new page or notebook is in the site without an edit of mkdocs.yml (add a nav line to
+place it elsewhere), and a new package of carmkin that no page of docs/api/ documents gets a generated API
+page.
 """
 
 from __future__ import annotations
@@ -92,8 +94,24 @@ def _listed(nav) -> set[str]:
     return found
 
 
+#: Parts of the package that are not library API (the command line has its own --help).
+NOT_API = {"cli", "commands"}
+#: Folder (in the site) of the API pages written by this hook for packages no page of docs/api/ documents yet.
+GENERATED_API = "api/more"
+
+
+def undocumented_packages(docs: Path) -> list[str]:
+    """``carmkin.X`` (a subpackage or a module of carmkin) that no ``::: carmkin.X...`` of docs/api/ renders."""
+    documented = "\n".join(p.read_text() for p in (docs / "api").glob("*.md"))
+    names = sorted({p.stem if p.is_file() else p.name for p in (ROOT / "carmkin").iterdir()
+                    if (p.suffix == ".py" or (p / "__init__.py").exists()) and not p.name.startswith("_")})
+    return [f"carmkin.{n}" for n in names
+            if n not in NOT_API and f"::: carmkin.{n}\n" not in documented and f"::: carmkin.{n}." not in documented]
+
+
 def on_config(config):
-    """Append to ``nav`` every notebook and docs page it does not list yet (under "Notebooks" / "More")."""
+    """Append to ``nav`` every notebook and docs page it does not list yet (under "Notebooks" / "More"), and an
+    API page for each package of carmkin that docs/api/ does not document yet (under "API reference")."""
     nav = config.get("nav")
     if nav is None:
         return config
@@ -103,7 +121,8 @@ def on_config(config):
              if not p.relative_to(docs).as_posix().startswith(("hooks/", "notebooks/"))]
     missing_pages = [p for p in pages if p not in listed]
     missing_notebooks = [f"notebooks/{p.name}" for p in notebook_paths() if f"notebooks/{p.name}" not in listed]
-    for title, entries in (("More", missing_pages), ("Notebooks", missing_notebooks)):
+    missing_api = [f"{GENERATED_API}/{name}.md" for name in undocumented_packages(docs)]
+    for title, entries in (("More", missing_pages), ("Notebooks", missing_notebooks), ("API reference", missing_api)):
         if not entries:
             continue
         section = next((item for item in nav if isinstance(item, dict) and title in item), None)
@@ -133,3 +152,12 @@ def on_pre_build(config):
         if not (NOTEBOOKS / stray.name).exists():
             stray.unlink()
     log.info(f"{len(paths)} notebooks ready in {time.perf_counter() - start:.1f} s")
+
+
+def on_files(files, config):
+    """The API pages announced by :func:`on_config`: one ``::: carmkin.X`` each."""
+    from mkdocs.structure.files import File
+
+    for name in undocumented_packages(Path(config["docs_dir"])):
+        files.append(File.generated(config, f"{GENERATED_API}/{name}.md", content=f"# {name}\n\n::: {name}\n"))
+    return files
