@@ -63,7 +63,9 @@ def test_speed_bound_is_sound(data):
     S = speed_bounds(scene)
     q1, q2 = data.draw(configurations(system)), data.draw(configurations(system))
     d1, d2 = scene.distances(q=q1), scene.distances(q=q2)
-    # separated pairs only: advancement certifies distances >= margin >= 0; coal's penetration depth of
-    # overlapping boxes depends on its warm start (the same q can give different depths)
-    apart = (d1 >= 0) & (d2 >= 0)
-    assert np.all((np.abs(d2 - d1) <= S @ np.abs(q2 - q1) + 2 * DISTANCE_ACCURACY)[apart])
+    # separated pairs only (by 1 mm, the regime advancement steps in with the default 10 mm margin): coal's
+    # penetration depth of overlapping boxes depends on its warm start (the same q can give different depths)
+    apart = (d1 > 1e-3) & (d2 > 1e-3)
+    bound = S @ np.abs(q2 - q1) + 2 * DISTANCE_ACCURACY
+    bad = np.flatnonzero(apart & (np.abs(d2 - d1) > bound))
+    assert not len(bad), [(scene.pairs[k], d1[k], d2[k], bound[k], q1.tolist(), q2.tolist()) for k in bad]
