@@ -142,7 +142,8 @@ class Sweep:
         return np.array([np.interp(phi, self.angles, self.q[:, j]) for j in range(self.q.shape[1])])
 
     def cut(self) -> "Sweep":
-        """The sweep restricted to its largest feasible arc (itself when it succeeded)."""
+        """The sweep planned again over its largest feasible arc (itself when it succeeded): the same frames,
+        started from the first feasible one (its φ restart at 0)."""
         if self.failure is None:
             return self
         if self.failure.feasible is None:

@@ -145,3 +145,13 @@ def test_rtk_stack_order_matches_the_grid(sweeps):
         assert stack.shape[1:] == (size[1], size[0])
         u, v = origin[0] + i * spacing[0], origin[1] + j * spacing[1]
         np.testing.assert_allclose(export.pixel_from_detector(sweep, layout=layout) @ [u, v, 1.0], [503, 17, 1], atol=1e-9)
+
+
+def test_rtk_without_the_extra_is_a_typed_error(sweeps, monkeypatch):
+    import sys
+
+    from carmkin.errors import ReconstructionUnavailableError
+
+    monkeypatch.setitem(sys.modules, "itk", None)  # as if itk-rtk were not installed
+    with pytest.raises(ReconstructionUnavailableError, match=r"pip install 'carmkin\[cbct\]'"):
+        export.rtk_geometry(sweeps[0])
