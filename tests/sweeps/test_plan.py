@@ -138,3 +138,18 @@ def test_bad_input_is_a_typed_error(kwargs, name):
     args.update(kwargs)
     with pytest.raises(SweepError, match=name):
         plan_sweep(PRESET, **args)
+
+
+@settings(max_examples=60)
+@given(st.one_of(st.floats(), st.text(max_size=3), st.none()), st.one_of(st.integers(-5, 5), st.floats()),
+       st.lists(st.floats(), min_size=0, max_size=4))
+def test_garbage_input_is_refused_with_a_typed_error(arc, views, target):
+    """Nothing but a SweepError (a CarmkinError) escapes for nonsense arguments; no numpy warning leaks."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        try:
+            plan_sweep(PRESET, target, arc_deg=arc, n_views=views, margin=0.0)
+        except carmkin.CarmkinError:
+            pass
