@@ -127,6 +127,8 @@ def solve(
     given with ``q_current``, the single-axis closed form only seeds the QP, which starts from ``q_current``
     (least weighted motion). ``backend``: QP backend name (created once per prepared solver).
     """
+    if obstacles is None or isinstance(obstacles, (str, bytes, dict)):
+        raise QPIKError(f"obstacles must be a list of carmkin.robot.collision.Obstacle, got {obstacles!r}")
     redundancy = Redundancy(weights, prefer, free)
     search = SearchOptions(closed_form, qp, random_seeds, rng_seed)
     reusable = not obstacles and scene is None and (backend is None or isinstance(backend, str))

@@ -81,8 +81,7 @@ def joint_weights(system, weights=None, prefer: str | None = None) -> np.ndarray
             raise QPIKError(f"joint_weights names unknown joint(s) {sorted(unknown)}; joints: {', '.join(names)}")
         w = check_weights([weights.get(n, 1.0) for n in names], len(names))
     else:
-        w = np.asarray(weights, dtype=float)
-    w = check_weights(w, len(names))
+        w = check_weights(weights, len(names))
     if prefer is None:
         return w
     if prefer not in ("table", "carm"):
