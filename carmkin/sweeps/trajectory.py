@@ -82,8 +82,11 @@ def solve_poses(system, T: np.ndarray, q_ref: np.ndarray) -> tuple[np.ndarray, n
 
     q = np.full((len(T), system.nq), np.nan)
     reached = np.zeros(len(T), dtype=bool)
+    # q_current is the branch reference and the held value of the table's other joints, which qp_ik wants in
+    # range; a plain trajectory may run past a limit (that is reported by the caller, not here)
+    q_current = np.clip(q_ref, system.lower, system.upper)
     for k in range(len(T)):
-        result = qp_ik.solve(system, T[k], q_current=q_ref[k], accept=lambda report: True)
+        result = qp_ik.solve(system, T[k], q_current=q_current[k], accept=lambda report: True)
         if np.all(np.isfinite(result.q)):
             q[k] = result.q
             reached[k] = bool(result.success)
