@@ -210,6 +210,15 @@ class DicomGeometryError(CarmkinError):
     """A DICOM geometry value is out of range or a dataset lacks what a conversion needs."""
 
 
+class DicomAttributeError(DicomGeometryError):
+    """A dataset's attribute is missing, empty, of the wrong type, not finite or outside the standard's range:
+    the message names the attribute's keyword and tag (``keyword`` and ``tag`` hold them)."""
+
+    def __init__(self, message: str, keyword: str = "", tag: str = ""):
+        super().__init__(message)
+        self.keyword, self.tag = keyword, tag
+
+
 # --- carmkin.interop.drr -------------------------------------------------------------------------
 
 
