@@ -52,7 +52,7 @@ from carmkin.model.params import JOINT_NAMES
 from carmkin.model.singular_cases import SingularCase, SingularFactors
 from carmkin.model.system import CArmSystem
 from carmkin.transforms import wrap_angle
-from carmkin.validation import MAX_DISTANCE, MIN_DISTANCE, distance, integer
+from carmkin.validation import MAX_DISTANCE, MIN_DISTANCE, distance, integer, real_scalar
 from carmkin.validation import joint_index as _joint_index
 
 #: Frame whose Jacobian is analysed, and the Pinocchio reference frame (twist at its origin, table axes).
@@ -66,8 +66,15 @@ CASE_TITLES = {case: case.title for case in CASES}
 CASE_LOSSES = {case: case.loss for case in CASES}
 
 
+def _check_system(system) -> CArmSystem:
+    if not isinstance(system, CArmSystem):
+        raise SingularityError(f"system must be a carmkin.CArmSystem (e.g. carmkin.load_preset(...)), got "
+                               f"{system!r:.80}")
+    return system
+
+
 def _paper_chain(system: CArmSystem, q) -> np.ndarray:
-    if system.nq != 6:
+    if _check_system(system).nq != 6:
         raise SingularityError(
             f"eq. 4.7 and the three singular cases hold for the paper's 6-joint chain; system {system.name!r} "
             f"has {system.nq} joints ({', '.join(system.joint_names)})")
@@ -98,7 +105,7 @@ def singularity_distances(system: CArmSystem, q) -> dict[SingularCase, np.ndarra
 # --- Pinocchio ---------------------------------------------------------------------------------------------
 def jacobian(system: CArmSystem, q, reference_frame=REFERENCE_FRAME) -> np.ndarray:
     """Pinocchio's Jacobian (6, nq) of ``xray_source``: rows ``[v; ω]`` (m/s, rad/s), see module docstring."""
-    q = check_configuration(q, system.nq)
+    q = check_configuration(q, _check_system(system).nq)
     if q.ndim != 1:
         raise SingularityError(f"jacobian takes one configuration (nq,), got shape {q.shape}; use jacobians")
     model = system.pinocchio()[0]
@@ -108,7 +115,7 @@ def jacobian(system: CArmSystem, q, reference_frame=REFERENCE_FRAME) -> np.ndarr
 
 def jacobians(system: CArmSystem, q, reference_frame=REFERENCE_FRAME) -> np.ndarray:
     """Jacobians (N, 6, nq) for configurations (N, nq) (one Pinocchio call per configuration)."""
-    q = np.atleast_2d(check_configuration(q, system.nq))
+    q = np.atleast_2d(check_configuration(q, _check_system(system).nq))
     model = system.pinocchio()[0]
     data = model.createData()
     frame_id = model.getFrameId(FRAME)
@@ -127,7 +134,7 @@ def det_jacobian(system: CArmSystem, q) -> np.ndarray:
 # --- scale-aware measures -----------------------------------------------------------------------------------
 def characteristic_length(system: CArmSystem) -> float:
     """Default characteristic length L (m): the orbital offset l2, source-to-angular-axis lever arm."""
-    return system.carm.orbital_offset
+    return _check_system(system).carm.orbital_offset
 
 
 #: Bounds (m) of a characteristic length: the physical distances of :mod:`carmkin.validation` (1 µm … 10 m),
@@ -143,7 +150,7 @@ def _check_length(system: CArmSystem, length: float | None) -> float:
 
 def scaling(system: CArmSystem, length: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """``(S, D)`` with ``Js = diag(S) · J · diag(D)``: S = (1/L)×3 then 1×3, D = L for prismatic joints."""
-    L = _check_length(system, length)
+    L = _check_length(_check_system(system), length)
     S = np.array([1.0 / L] * 3 + [1.0] * 3)
     D = np.where(np.array(system.prismatic), L, 1.0)
     return S, D
@@ -293,6 +300,9 @@ def classify(system: CArmSystem, q, near: float = math.radians(5.0), tol: float 
     q = _paper_chain(system, q)
     if q.ndim != 1:
         raise SingularityError(f"classify takes one configuration (6,), got shape {q.shape}")
+    near = real_scalar(near, "near", error=SingularityError, low=0.0, high=math.pi, unit="rad")
+    tol = real_scalar(tol, "tol", error=SingularityError, low=0.0, high=math.pi, unit="rad")
+    rtol = real_scalar(rtol, "rtol", error=SingularityError, low=0.0, high=1.0)
     if not (0.0 <= tol <= near):
         raise SingularityError(f"need 0 <= tol <= near (rad), got tol={tol}, near={near}")
     factors = singular_factors(system, q)
@@ -326,8 +336,10 @@ def check_determinant(system: CArmSystem, samples: int, random_setups: int = 0, 
     """Largest |det J (Pinocchio) − eq. 4.7| over random configurations (and random non-isocentric systems)."""
     from carmkin.model.sampling import random_configurations, random_system
 
-    rng = np.random.default_rng(seed)
-    systems = [system] + [random_system(rng, system) for _ in range(random_setups)]
+    samples = integer(samples, "samples", low=0, high=10_000_000, error=SingularityError)
+    random_setups = integer(random_setups, "random_setups", low=0, high=100_000, error=SingularityError)
+    rng = np.random.default_rng(integer(seed, "seed", low=0, error=SingularityError))
+    systems = [_check_system(system)] + [random_system(rng, system) for _ in range(random_setups)]
     worst = 0.0
     for k, sys_k in enumerate(systems):
         n = samples // len(systems) + (k < samples % len(systems))
@@ -352,7 +364,7 @@ def joint_index(joint, system: CArmSystem | None = None) -> int:
     """Index in q of ``system``'s joint (default: the paper's 6-joint chain) given by name (``"angular"``),
     symbol (``"theta4"``) or index ``0 <= i < nq`` (:func:`carmkin.validation.joint_index`: no negative
     alias, no bool, no float); else :class:`SingularityError` naming the valid names and range."""
-    names = JOINT_NAMES if system is None else system.joint_names
+    names = JOINT_NAMES if system is None else _check_system(system).joint_names
     if isinstance(joint, str):
         key = joint.strip().lower()
         joint = SYMBOLS.get(key, key) if key in SYMBOLS or key in names else joint
@@ -371,7 +383,7 @@ def _pair(system: CArmSystem, pair) -> tuple[int, int]:
 def grid_axis(system: CArmSystem, joint, n: int) -> np.ndarray:
     """``n`` grid values of a joint (name or index, :func:`joint_index`): revolute over a full turn [−π, π],
     prismatic over its range (m or rad)."""
-    joint = joint_index(joint, system)
+    joint = joint_index(joint, _check_system(system))
     n = integer(n, "n (grid points per axis)", low=2, high=MAX_GRID, error=SingularityError)
     if system.prismatic[joint]:
         r = system.joint_ranges[joint]
@@ -393,7 +405,7 @@ def measure_map(system: CArmSystem, q, pair: tuple[int, int], n: int = 61, measu
     on the 6-joint chain eq. 4.7 in closed form, vectorized; with a motorized table Pinocchio per grid point.
     The other measures (of the scaled 6 x nq Jacobian) call Pinocchio per grid point (fine up to ~100×100).
     """
-    q = check_configuration(q, system.nq)
+    q = check_configuration(q, _check_system(system).nq)
     if q.ndim != 1:
         raise SingularityError(f"measure_map takes one configuration ({system.nq},), got shape {q.shape}")
     if not isinstance(measure, str) or measure not in MAP_MEASURES:
@@ -425,16 +437,16 @@ def singular_curves(system: CArmSystem, pair, q=None) -> list[tuple[str, int, fl
     motorized table the table top's joints turn Z0, so the wigwag values are solved from the DH frames at
     ``q`` (nq,) (default: every joint at 0): ``(Z0 × Z1) · Z3(θ2) = 0`` with Z3 turning about Z2.
     """
-    i, j = _pair(system, pair)
+    i, j = _pair(_check_system(system), pair)
+    q = np.zeros(system.nq) if q is None else check_configuration(q, system.nq)
+    if q.ndim != 1:
+        raise SingularityError(f"singular_curves takes one configuration ({system.nq},), got shape {q.shape}")
     out = []
     names = system.joint_names
     angular, wigwag = names.index("angular"), names.index("wigwag")
     if angular in (i, j):
         out += [(SingularCase.ORBITAL_PARALLEL_TO_WIGWAG, angular, wrap_angle(v)) for v in (-math.pi / 2, math.pi / 2)]
     if wigwag in (i, j):
-        q = np.zeros(system.nq) if q is None else check_configuration(q, system.nq)
-        if q.ndim != 1:
-            raise SingularityError(f"singular_curves takes one configuration ({system.nq},), got shape {q.shape}")
         out += [(SingularCase.TABLE_PARALLEL_TO_HORIZONTAL, wigwag, v) for v in _case_c_wigwag(system, q, wigwag)]
     return out
 

@@ -85,8 +85,13 @@ def maybe_junk(rng: np.random.Generator, case: Case, names: tuple[str, ...]) -> 
         return case
     i = int(rng.integers(0, len(names)))
     args = list(case.args)
-    args[i] = junk(rng, args[i] if isinstance(args[i], (np.ndarray, list, tuple)) else None)
-    return Case(case.fn, tuple(args), case.kwargs, None, names[i])
+    value = None
+    while value is None:  # a name ending in "?" takes None as its default: draw other junk for it
+        value = junk(rng, args[i] if isinstance(args[i], (np.ndarray, list, tuple)) else None)
+        if not names[i].endswith("?"):
+            break
+    args[i] = value
+    return Case(case.fn, tuple(args), case.kwargs, None, names[i].rstrip("?"))
 
 
 # --- running --------------------------------------------------------------------------------------------

@@ -279,3 +279,24 @@ def test_panorama_plan(length, overlap):
     from carmkin.imaging.panorama import PanoramaPlanner
 
     call(PanoramaPlanner(PRESET).plan, length, overlap=overlap)
+
+
+# --- issue 19: every entry point with its oracle (the quick slice of benchmarks/fuzz.py) -----------------
+import fuzz_engine  # noqa: E402
+import fuzz_entries  # noqa: E402
+import fuzz_entries_systems  # noqa: E402
+
+#: Cases per entry point in CI (benchmarks/fuzz.py --cases 50000 is the long run).
+SLICE_CASES = 40 * SCALE
+ALL_ENTRIES = {**fuzz_entries.ENTRIES, **fuzz_entries_systems.ENTRIES}
+
+
+@pytest.mark.parametrize("name", [
+    pytest.param(name, marks=pytest.mark.xfail(reason=fuzz_entries_systems.KNOWN[name], strict=False))
+    if name in fuzz_entries_systems.KNOWN else name for name in ALL_ENTRIES])
+def test_entry_point_right_or_refused(name):
+    make, _ = ALL_ENTRIES[name]
+    tally = fuzz_engine.run({name: (make, 1)}, SLICE_CASES, seed=1)[name]
+    assert tally.cases == SLICE_CASES
+    assert fuzz_engine.findings(tally) == 0, "\n".join(tally.examples)
+    assert tally.counts["ok"] > 0, "no case reached the oracle: the generator only makes junk"
