@@ -57,7 +57,12 @@ def wrap_angle(rng):
         xs = np.atleast_1d(arg)
         k = (xs - w) / (2 * np.pi)
         return np.all((w > -np.pi) & (w <= np.pi)) and np.allclose(k, np.round(k), atol=1e-9 * max(1, abs(x)))
-    return maybe_junk(rng, Case(transforms.wrap_angle, (arg,), check=check), ("angle",))
+    case = maybe_junk(rng, Case(transforms.wrap_angle, (arg,), check=check), ("angle",))
+    value = case.args[0]
+    if case.junk and isinstance(value, np.ndarray) and value.dtype == float and not np.any(np.isinf(value)):
+        nan = np.isnan(value)  # documented: NaN passes through as NaN (an IK branch without a solution)
+        return Case(transforms.wrap_angle, (value,), check=lambda w: bool(np.all(np.isnan(w) == nan)))
+    return case
 
 
 def pose_error(rng):
