@@ -58,10 +58,12 @@ ATTRIBUTES: dict[str, Attribute] = {a.keyword: a for a in (
 
 def tag_text(keyword: str) -> str:
     """``"(gggg,eeee)"`` of a keyword, from pydicom's data dictionary."""
-    from pydicom.datadict import tag_for_keyword
-
     if not isinstance(keyword, str):
         raise DicomGeometryError(f"keyword must be a DICOM keyword (str), got {_describe(keyword)}")
+    try:
+        from pydicom.datadict import tag_for_keyword
+    except ImportError:  # pragma: no cover - without the dicom extra no dataset reaches here
+        return "(?)"
     tag = tag_for_keyword(keyword)
     return "(?)" if tag is None else f"({tag >> 16:04X},{tag & 0xFFFF:04X})"
 
@@ -73,9 +75,11 @@ def _error(keyword: str, text: str) -> DicomAttributeError:
 
 def check_dataset(ds, name: str = "ds"):
     """``ds`` if it is a pydicom Dataset (a functional group item included), else :class:`DicomGeometryError`."""
-    from carmkin.interop.dicom_io import require_pydicom
-
-    if not isinstance(ds, require_pydicom().Dataset):
+    try:
+        from pydicom.dataset import Dataset
+    except ImportError:  # pragma: no cover - without the dicom extra nothing is a Dataset
+        Dataset = ()
+    if not isinstance(ds, Dataset):
         raise DicomGeometryError(f"{name} must be a pydicom Dataset (pydicom.dcmread), got {_describe(ds)}")
     return ds
 

@@ -174,6 +174,11 @@ class DicomView:
     source: str
     full_pose: bool = True
 
+    def __post_init__(self):
+        self.pose = validation.rigid_transform(self.pose, "pose (source pose)", error=DicomGeometryError)
+        if not isinstance(self.source, str) or not isinstance(self.full_pose, bool):
+            raise DicomGeometryError(f"source must be a str and full_pose a bool, got {self.source!r}, {self.full_pose!r}")
+
 
 def view_from_dataset(ds, isocenter=None, patient_origin=(0.0, 0.0, 0.0), *, frame: int = 0,
                       patient_position: str | None = None, convention: str = dicom.DEFAULT_CONVENTION) -> DicomView:

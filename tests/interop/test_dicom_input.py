@@ -224,6 +224,9 @@ CALLS = [
      dict(ds=JUNK_DATASETS, isocenter=JUNK_POINTS[1:], patient_origin=JUNK_POINTS, convention=JUNK_NAMES)),
     (dicom_io.moves_for_dataset, dict(system=PRESET, ds=GOOD_DS, q_current=Q, isocenter=(0.0, 0.0, 0.0)),
      dict(system=JUNK_SYSTEMS, ds=JUNK_DATASETS, isocenter=JUNK_POINTS[1:])),
+    (dicom_io.DicomView, dict(pose=np.eye(4), source="test", full_pose=True),
+     dict(pose=JUNK_POSES[1:] + [None], source=[None, 1.0], full_pose=[None, 1.0, "yes"])),
+    (dicom.angle, dict(value=1.0, name="value", bounds=(-180.0, 180.0)), dict(value=JUNK_NUMBERS + [181.0])),
     (dicom_attributes.read_number, dict(ds=GOOD_DS, keyword="PositionerPrimaryAngle"),
      dict(ds=JUNK_DATASETS, keyword=JUNK_NAMES + ["PatientName"])),
     (dicom_attributes.read_patient_position, dict(ds=pydicom.Dataset(), patient_position="HFS"),
@@ -252,7 +255,7 @@ def test_junk_gets_a_typed_error_naming_the_argument(function, good, argument, v
         with pytest.raises(CarmkinError) as info:
             function(**kwargs)
     message = str(info.value)
-    named = {"M": "M (", "ds": ("ds", "("), "path": ("path", "cannot read")}
+    named = {"M": "M (", "ds": ("ds", "("), "path": ("path", "cannot read"), "full_pose": "source"}
     expected = named.get(argument, argument)
     assert any(word in message for word in ((expected,) if isinstance(expected, str) else expected)), message
 
