@@ -3,9 +3,9 @@ non-rigid poses, junk types.
 
 Every call must end in one of two ways:
 - a correct answer (each entry point states what "correct" means below), or
-- a typed error: a ``carmkin.CarmkinError`` subclass, or a ``TypeError`` raised by carmkin's own code (a clear
-  message for a wrong type). An error from deep inside numpy, Pinocchio or Python (IndexError,
-  AttributeError, a bare TypeError) is a finding.
+- a typed error: a ``carmkin.CarmkinError`` subclass (issue 19: never a bare TypeError, not even one raised
+  by carmkin's own code). An error from deep inside numpy, Pinocchio or Python (IndexError, AttributeError,
+  TypeError) is a finding.
 No warning may leak (warnings are errors here), and no call may hang: each is cut off after
 ``CALL_LIMIT_S`` seconds (a guard against unbounded work, not a timing assertion).
 
@@ -20,7 +20,6 @@ import signal
 import traceback
 import warnings
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -39,7 +38,6 @@ CALL_LIMIT_S = 20
 
 PRESET = carmkin.load_preset("siremobile-iso-c3d")
 MOTORIZED = carmkin.load_preset("siremobile-iso-c3d-motorized-table")
-PACKAGE_DIRS = (str(Path(carmkin.__file__).parent), str(Path(carmkin.__file__).parents[1] / "viz"))
 
 
 def fuzz(examples: int = FUZZ_EXAMPLES):
@@ -118,11 +116,6 @@ def call(fn, *args, **kwargs):
         pytest.fail(f"{fn.__qualname__} took more than {CALL_LIMIT_S} s")
     except carmkin.CarmkinError as exc:
         assert str(exc), "a typed error must say what is wrong"
-        return "error", exc
-    except TypeError as exc:
-        origin = traceback.extract_tb(exc.__traceback__)[-1].filename
-        if not origin.startswith(PACKAGE_DIRS):
-            pytest.fail(f"{fn.__qualname__} leaked an untyped TypeError from {origin}: {exc}")
         return "error", exc
     except Exception as exc:  # noqa: BLE001 - everything else is a finding
         pytest.fail(f"{fn.__qualname__} raised {type(exc).__name__}: {exc}\n{traceback.format_exc()}")
