@@ -19,6 +19,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 import fuzz_engine  # noqa: E402
 import fuzz_entries  # noqa: E402
+import fuzz_entries_more  # noqa: E402
 import fuzz_entries_systems  # noqa: E402
 
 
@@ -28,7 +29,7 @@ def main(argv=None) -> int:
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     parser.add_argument("--examples", type=int, default=2, help="findings printed per entry point (default 2)")
     args = parser.parse_args(argv)
-    entries = {**fuzz_entries.ENTRIES, **fuzz_entries_systems.ENTRIES}
+    entries = {**fuzz_entries.ENTRIES, **fuzz_entries_systems.ENTRIES, **fuzz_entries_more.ENTRIES}
     start = time.perf_counter()
     tallies = fuzz_engine.run(entries, args.cases, args.seed, args.examples)
     print(fuzz_engine.table(tallies))

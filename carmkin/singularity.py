@@ -52,7 +52,7 @@ from carmkin.model.params import JOINT_NAMES
 from carmkin.model.singular_cases import SingularCase, SingularFactors
 from carmkin.model.system import CArmSystem
 from carmkin.transforms import wrap_angle
-from carmkin.validation import MAX_DISTANCE, MIN_DISTANCE, distance, integer, real_scalar
+from carmkin.validation import MAX_DISTANCE, MIN_DISTANCE, distance, instance, integer, real_scalar
 from carmkin.validation import joint_index as _joint_index
 
 #: Frame whose Jacobian is analysed, and the Pinocchio reference frame (twist at its origin, table axes).
@@ -67,10 +67,7 @@ CASE_LOSSES = {case: case.loss for case in CASES}
 
 
 def _check_system(system) -> CArmSystem:
-    if not isinstance(system, CArmSystem):
-        raise SingularityError(f"system must be a carmkin.CArmSystem (e.g. carmkin.load_preset(...)), got "
-                               f"{system!r:.80}")
-    return system
+    return instance(system, CArmSystem, "system", error=SingularityError, hint="carmkin.load_preset(...)")
 
 
 def _paper_chain(system: CArmSystem, q) -> np.ndarray:

@@ -271,4 +271,8 @@ KNOWN = {
                              "points raise cv2.error from SQPNP (owner: pose)",
     "reposition.calibrate_table": "a still marker (no camera motion) is accepted, with a leaked RuntimeWarning "
                                   "(owner: pose)",
+    "reposition.camera.project_points": "junk K raises TypeError (check_intrinsics), a (3,) point IndexError, "
+                                        "points behind the camera come back as inf pixels with a warning (owner: pose)",
+    "robot.validity.check": "a junk system raises AttributeError in carmkin/robot/validity.py (not in this wave's "
+                            "files: for the lead)",
 }
