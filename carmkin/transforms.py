@@ -192,7 +192,11 @@ def rotation_angle(Ra, Rb):
 
 def pose_error(Ta, Tb):
     """``(position error m, rotation angle rad)`` between poses (..., 4, 4): ``‖pa − pb‖`` and the angle of
-    ``Raᵀ Rb`` (:func:`rotation_angle`). Floats for one pair of (4, 4), arrays (...) for stacks; symmetric."""
+    ``Raᵀ Rb`` (:func:`rotation_angle`). Floats for one pair of (4, 4), arrays (...) for stacks; symmetric.
+
+    Junk types and shapes raise :class:`~carmkin.errors.InvalidPoseError`; magnitudes are not bounded and a
+    NaN/inf pose gives a NaN/inf error (never a finite number): the IK takes the residual of branches that
+    ran off to huge values or have no solution."""
     # types and shapes only: the IK takes the residual of branches that may have run off to huge values
     Ta, Tb = _real(Ta, "Ta", None, InvalidPoseError), _real(Tb, "Tb", None, InvalidPoseError)
     if Ta.ndim < 2 or Ta.shape[-2:] != (4, 4) or Tb.ndim < 2 or Tb.shape[-2:] != (4, 4):

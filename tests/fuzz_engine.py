@@ -18,6 +18,7 @@ points live in ``fuzz_entries*.py``.
 
 from __future__ import annotations
 
+import math
 import signal
 import traceback
 import warnings
@@ -149,7 +150,7 @@ def run(entries: dict, cases: int, seed: int = 0, examples: int = 3) -> dict[str
     for k, (name, (make, weight)) in enumerate(entries.items()):
         rng = np.random.default_rng((seed, k))
         tally = Tally()
-        for _ in range(max(1, round(cases * weight / total))):
+        for _ in range(max(1, math.ceil(cases * weight / total))):
             case = make(rng)
             outcome, warned, detail = run_case(case)
             tally.cases += 1
