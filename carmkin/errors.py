@@ -233,10 +233,6 @@ class SweepError(CarmkinError):
     """A sweep cannot be planned or exported as asked (bad arc, joint, target, export argument)."""
 
 
-class ReconstructionUnavailableError(SweepError):
-    """Simulating or reconstructing a sweep needs the ``cbct`` extra (itk-rtk), which is not installed."""
-
-
 # --- carmkin.viz (the browser viewer) -----------------------------------------------------------------
 
 

@@ -18,6 +18,7 @@ EXTRAS = {
     "reposition": "OpenCV (cv2)",
     "dicom": "pydicom",
     "drr": "torch, nanodrr and nibabel",
+    "cbct": "itk-rtk (itk with RTK's CPU filters)",
 }
 
 

@@ -31,7 +31,7 @@ import math
 
 import numpy as np
 
-from carmkin.errors import ReconstructionUnavailableError, SweepError
+from carmkin.errors import SweepError
 
 #: World units per metre of the exports (mm).
 MM = 1e3
@@ -101,22 +101,19 @@ def positioner_angles(sweep, patient="HFS") -> np.ndarray:
 
 
 def _rtk():
-    """``(itk, rtk)``, or :class:`ReconstructionUnavailableError` naming the extra. Loading RTK's wrappers
-    takes tens of seconds the first time in a process (ITK's lazy loading); SWIG's import-time
+    """``(itk, rtk)``, or :class:`~carmkin.errors.MissingExtraError` naming the ``cbct`` extra. Loading RTK's
+    wrappers takes tens of seconds the first time in a process (ITK's lazy loading); SWIG's import-time
     DeprecationWarnings are silenced, and ITK's warning display is turned off: the one warning RTK gives
     here (Parker weights of a scan shorter than 180° + fan) is stated by :class:`~.plan.ShortScan`."""
     import warnings
 
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", DeprecationWarning)
-            import itk
-            from itk import RTK as rtk
+    from carmkin.extras import require
 
-            rtk.ThreeDCircularProjectionGeometry  # noqa: B018 (loads the wrappers inside the filter)
-    except ImportError as exc:  # pragma: no cover - depends on the environment
-        raise ReconstructionUnavailableError(
-            "the RTK export needs the cbct extra: pip install 'carmkin[cbct]' (itk-rtk)") from exc
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        itk = require("itk", "cbct")
+        rtk = itk.RTK
+        rtk.ThreeDCircularProjectionGeometry  # noqa: B018 (loads the wrappers inside the filter)
     itk.Object.GlobalWarningDisplayOff()
     return itk, rtk
 

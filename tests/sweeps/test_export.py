@@ -150,8 +150,8 @@ def test_rtk_stack_order_matches_the_grid(sweeps):
 def test_rtk_without_the_extra_is_a_typed_error(sweeps, monkeypatch):
     import sys
 
-    from carmkin.errors import ReconstructionUnavailableError
+    from carmkin.errors import MissingExtraError
 
     monkeypatch.setitem(sys.modules, "itk", None)  # as if itk-rtk were not installed
-    with pytest.raises(ReconstructionUnavailableError, match=r"pip install 'carmkin\[cbct\]'"):
+    with pytest.raises(MissingExtraError, match=r'pip install "carmkin\[cbct\]"'):
         export.rtk_geometry(sweeps[0])
