@@ -17,6 +17,7 @@ from carmkin.errors import (
     CameraError,  # noqa: F401 (defined there, raised here)
     )
 from carmkin.transforms import check_rigid_transform, inverse
+from carmkin.validation import intrinsics
 
 from .pattern import MarkerBoard
 
@@ -37,14 +38,10 @@ class CornerView:
         return len(self.ids)
 
 
-def check_intrinsics(K) -> np.ndarray:
-    """``K`` as a float (3, 3) upper-triangular pinhole matrix with positive focal lengths, else an error."""
-    K = np.asarray(K, dtype=float)
-    if K.shape != (3, 3) or not np.all(np.isfinite(K)) or K[0, 0] <= 0 or K[1, 1] <= 0 \
-            or np.any(K[2] != (0.0, 0.0, 1.0)) or K[1, 0] != 0.0:
-        raise CameraError(f"K must be a finite 3x3 pinhole matrix [[fx, s, cx], [0, fy, cy], [0, 0, 1]] with "
-                          f"fx, fy > 0 (px), got {np.array2string(K, precision=4)}")
-    return K
+def check_intrinsics(K, name: str = "K") -> np.ndarray:
+    """``K`` as a float (3, 3) pinhole matrix ``[[fx, s, cx], [0, fy, cy], [0, 0, 1]]`` (px), else a
+    :class:`CameraError`: :func:`carmkin.validation.intrinsics`, the one way in for intrinsics."""
+    return intrinsics(K, name, error=CameraError)
 
 
 def project_points(K, T_frame_camera, points) -> tuple[np.ndarray, np.ndarray]:
