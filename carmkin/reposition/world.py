@@ -120,9 +120,14 @@ class World:
         noisy = camera.with_noise(self.view(T_table_source), self.corner_noise_px, rng)
         return pose.pose_from_view(noisy, self.K, sigma_px=self.corner_noise_px or None)
 
+    def measure_estimate(self, q, rng: np.random.Generator) -> pose.PoseEstimate:
+        """The camera's estimate at the true joints ``q``, expressed in the table frame as the guidance sees
+        it (through the calibrated mount): pose, residuals, covariance."""
+        return self.measure_marker(self.system.fk(q), rng).expressed_in(self.measured_mount)
+
     def measure(self, q, rng: np.random.Generator) -> np.ndarray:
         """The source pose (4, 4) in the table frame as the guidance sees it at the true joints ``q``."""
-        return self.measured_mount @ self.measure_marker(self.system.fk(q), rng).T
+        return self.measure_estimate(q, rng).T
 
     def calibrated(self, q, rng: np.random.Generator, positions: int = 6, span: float = 0.2,
                    method: str = "svd") -> "World":
