@@ -175,6 +175,13 @@ class PoseError(CarmkinError):
     """Bad input to pose estimation (shapes, too few points, non-finite values) or no solution."""
 
 
+# --- carmkin.reposition.model -------------------------------------------------------------------
+
+
+class RepositionModelError(CarmkinError):
+    """Bad input to the model from a measured pose (system, pose, joint readings, covariance)."""
+
+
 # --- carmkin.reposition.calibration --------------------------------------------------------------
 
 

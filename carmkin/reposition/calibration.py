@@ -204,8 +204,8 @@ def calibration_moves(positions: int, span: float, axes=(2, 1)) -> np.ndarray:
     if isinstance(axes, (str, bytes)) or not hasattr(axes, "__iter__"):
         raise CalibrationError(f"axes must name at least two table axes among 0, 1, 2, got {axes!r}")
     axes = tuple(axes)
-    if len(axes) < 2 or len(set(axes)) != len(axes) or any(
-            isinstance(a, (bool, np.bool_)) or not isinstance(a, (int, np.integer)) or a not in (0, 1, 2) for a in axes):
+    if len(axes) < 2 or any(isinstance(a, (bool, np.bool_)) or not isinstance(a, (int, np.integer))
+                            or a not in (0, 1, 2) for a in axes) or len(set(axes)) != len(axes):
         raise CalibrationError(f"axes must name at least two different table axes among 0, 1, 2, got {axes!r}")
     moves = np.zeros((positions, 3))
     per_axis = np.array_split(np.arange(1, positions), len(axes))

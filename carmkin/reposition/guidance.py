@@ -42,6 +42,7 @@ from carmkin.errors import (
 
 from carmkin.validation import real_array, real_scalar, rigid_transform
 
+from . import _checks
 from .model import PROPAGATION_STEP, frozen_table_system
 from .pose import PoseEstimate
 
@@ -155,15 +156,11 @@ def sweep(system, scene, q_from, q_to, clearance: float, lever_arm: float) -> Sw
 
 
 def _system(value, name: str):
-    from carmkin.model.system import CArmSystem
-
-    if not isinstance(value, CArmSystem):
-        raise GuidanceError(f"{name} must be a CArmSystem, got {type(value).__name__}")
-    return value
+    return _checks.system(value, name, GuidanceError)
 
 
 def _joints(system, value, name: str) -> np.ndarray:
-    return real_array(value, name, (system.nq,), error=GuidanceError, unit="m, rad")
+    return _checks.joints(system, value, name, GuidanceError)
 
 
 def read_joints(model, T_source, q_previous, q_table=None) -> np.ndarray:

@@ -37,25 +37,19 @@ import numpy as np
 from carmkin.errors import (
     PoseError,  # noqa: F401 (defined there, raised here)
 )
+from carmkin.extras import require
 from carmkin.validation import pixel_array, point_array, real_scalar, rigid_transform
 
 from .camera import CornerView, check_intrinsics
 from .pattern import MarkerBoard
-from .reprojection import (  # noqa: F401 (depths, reprojection_jacobian: re-exported)
-    camera_pose,
-    depths,
-    refine_minpack,
-    refine_opencv,
-    reprojection_jacobian,
-    residuals,
-)
+from .reprojection import REFINERS, refine_minpack, refine_opencv, reprojection_jacobian  # noqa: F401
+from .reprojection import _camera_pose, _depths, _jacobian, _residuals
 
 #: Fewest correspondences accepted (PnP with IPPE / SQPNP needs 4 / 3; 4 keeps a redundancy check).
 MIN_POINTS = 4
 #: Object points whose smallest principal extent is below this fraction of the largest count as planar (and
 #: as one line when the second is).
 PLANARITY_TOLERANCE = 1e-9
-REFINERS = ("minpack", "opencv")
 #: Two starts whose rotations differ by less than this (Frobenius norm) and whose positions differ by less
 #: than this fraction of the distance to the points are the same start: refined once.
 SAME_START = 1e-6
@@ -136,8 +130,7 @@ def _is_planar(obj: np.ndarray) -> bool:
 
 def _starts(obj: np.ndarray, img: np.ndarray, K: np.ndarray, T_previous) -> list[np.ndarray]:
     """Every start (camera poses (4, 4)) the solvers offer, each once, all points in front of it."""
-    import cv2
-
+    cv2 = require("cv2", "reposition")
     methods = (cv2.SOLVEPNP_SQPNP, cv2.SOLVEPNP_ITERATIVE)
     methods = (cv2.SOLVEPNP_IPPE,) + methods if _is_planar(obj) else methods
     # The solvers see the points centred and scaled to unit RMS radius (SQPNP asserts an absolute minimum
@@ -153,15 +146,15 @@ def _starts(obj: np.ndarray, img: np.ndarray, K: np.ndarray, T_previous) -> list
             continue
         for r, t in zip(rvecs[:count], tvecs[:count]):
             if np.all(np.isfinite(r)) and np.all(np.isfinite(t)):
-                T = camera_pose(r, t)
+                T = _camera_pose(r, t)
                 T[:3, 3] = centre + scale * T[:3, 3]
                 starts.append(T)
     kept: list[np.ndarray] = []
     for T in starts:
-        if not np.all(depths(T, obj) > 0):
+        if not np.all(_depths(T, obj) > 0):
             continue  # cheirality: a point behind the camera (the mirror pose)
         if any(np.linalg.norm(T[:3, :3] - U[:3, :3]) < SAME_START
-               and np.linalg.norm(T[:3, 3] - U[:3, 3]) < SAME_START * (scale + abs(depths(U, obj)).max()) for U in kept):
+               and np.linalg.norm(T[:3, 3] - U[:3, 3]) < SAME_START * (scale + abs(_depths(U, obj)).max()) for U in kept):
             continue
         kept.append(T)
     return kept
@@ -210,8 +203,8 @@ def solve_pose(object_points, image_points, K, sigma_px: float | None = None, re
     best = None
     for start in _starts(obj, img, K, T_previous):
         T = refine_minpack(K, start, obj, img) if refine == "minpack" else refine_opencv(K, start, obj, img)
-        r = residuals(K, T, obj, img)
-        if not (np.all(np.isfinite(r)) and np.all(np.isfinite(T)) and np.all(depths(T, obj) > 0)):
+        r = _residuals(K, T, obj, img)
+        if not (np.all(np.isfinite(r)) and np.all(np.isfinite(T)) and np.all(_depths(T, obj) > 0)):
             continue  # the refinement crossed to the mirror side or diverged
         ssr = float(np.sum(r**2))
         if best is None or ssr < best[1]:
@@ -224,7 +217,7 @@ def solve_pose(object_points, image_points, K, sigma_px: float | None = None, re
     rms = float(np.sqrt(ssr / n))
     _refuse_residual(rms, sigma_px, n)
     sigma = sigma_px if sigma_px is not None else float(np.sqrt(ssr / (2 * n - 6)))
-    covariance, condition = _covariance(reprojection_jacobian(K, T, obj), sigma**2)
+    covariance, condition = _covariance(_jacobian(K, T, obj), sigma**2)
     if not condition <= MAX_CONDITION:
         raise PoseError(f"the {n} points do not determine the pose: condition number {condition:.3g} of the "
                         f"reprojection Jacobian > {MAX_CONDITION:g} (nearly collinear points, or a board tiny "
@@ -243,7 +236,7 @@ def estimate_pose(object_points, image_points, K) -> np.ndarray:
 
 @lru_cache(maxsize=8)
 def _detector(board: MarkerBoard):
-    import cv2
+    cv2 = require("cv2", "reposition")
 
     params = cv2.aruco.DetectorParameters()
     params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX

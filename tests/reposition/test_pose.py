@@ -64,6 +64,16 @@ def test_estimate_pose_returns_the_camera_to_marker_transform():
     assert T[2, 3] < 0  # the camera is on the printed side (marker Z points into the table)
 
 
+def _perturbed(T, x):
+    """``R = exp([ω]) R``, ``p = p + δp`` (the convention of the Jacobian), by scipy."""
+    from scipy.spatial.transform import Rotation
+
+    out = T.copy()
+    out[:3, :3] = Rotation.from_rotvec(x[:3]).as_matrix() @ T[:3, :3]
+    out[:3, 3] += x[3:]
+    return out
+
+
 def test_jacobian_matches_finite_differences():
     T = camera.camera_in_marker(MOUNT, SYSTEM.fk(np.array([0.05, 0.1, 0.05, 0.1, 0.2, -0.3])))
     X = BOARD.corners[:40].reshape(-1, 3)
@@ -72,8 +82,8 @@ def test_jacobian_matches_finite_differences():
     for k in range(6):
         x = np.zeros(6)
         x[k] = h
-        plus, _ = camera.project_points(K, reprojection.perturbed(T, x), X)
-        minus, _ = camera.project_points(K, reprojection.perturbed(T, -x), X)
+        plus, _ = camera.project_points(K, _perturbed(T, x), X)
+        minus, _ = camera.project_points(K, _perturbed(T, -x), X)
         np.testing.assert_allclose(J[:, k], ((plus - minus) / (2 * h)).ravel(), rtol=1e-5, atol=1e-4)
 
 
