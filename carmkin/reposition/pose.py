@@ -105,10 +105,10 @@ class PoseEstimate:
     def expressed_in(self, T_frame_marker) -> "PoseEstimate":
         """The same estimate in another frame: ``T`` becomes ``T_frame_marker @ T`` and both blocks of the
         covariance rotate with ``T_frame_marker``'s rotation (ω and δp are vectors of the marker frame)."""
+        from .model import to_table_frame
+
         A = rigid_transform(T_frame_marker, "T_frame_marker", error=PoseError)
-        R6 = np.zeros((6, 6))
-        R6[:3, :3] = R6[3:, 3:] = A[:3, :3]
-        return replace(self, T=A @ self.T, covariance=R6 @ self.covariance @ R6.T)
+        return replace(self, T=A @ self.T, covariance=to_table_frame(self.covariance, A[:3, :3]))
 
 
 def _correspondences(object_points, image_points) -> tuple[np.ndarray, np.ndarray]:
