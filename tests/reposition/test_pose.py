@@ -215,7 +215,7 @@ def test_corners_no_pose_explains_are_refused():
     T_true = camera.camera_in_marker(MOUNT, SYSTEM.fk(np.zeros(6)))
     view = camera.visible_corners(BOARD, K, SIZE, T_true)
     shuffled = view.image_points[rng.permutation(len(view.image_points))]
-    with pytest.raises(pose.PoseError, match="no pose explains"):
+    with pytest.raises(pose.PoseError, match="no pose"):
         pose.solve_pose(view.object_points, shuffled, K)
     noisy = camera.with_noise(view, 1.0, rng)
     with pytest.raises(pose.PoseError, match="stated corner noise"):
