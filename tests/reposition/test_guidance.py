@@ -178,14 +178,16 @@ def test_reading_covariance_agrees_with_monte_carlo():
 def test_the_stop_rule_accounts_for_the_pose_uncertainty():
     q = np.array([0.0, 0.1, 0.0, 0.1, 0.0, 0.0])
     near = q + np.array([0.0015, 0.0, 0.0, 0.0, 0.0, 0.0])  # 1.5 mm of table translation left: below 2 mm
+    position_sd = lambda mm: np.diag([1e-16] * 3 + [(mm * 1e-3) ** 2] * 3)  # noqa: E731
     guide = guidance.Guide(SYSTEM, SYSTEM.fk(near), q)
     assert guide.step(_estimate(SYSTEM.fk(q), np.zeros((6, 6)))).done  # exact estimate: the seed's rule
-    sd_table = np.diag([1e-16] * 3 + [1e-6] * 3)  # 1 mm sd of the position: 1.5 mm + 1 sd > 2 mm
-    step = guide.step(_estimate(SYSTEM.fk(q), sd_table))
+    assert guide.step(_estimate(SYSTEM.fk(q), position_sd(0.6))).done  # sd 0.6 mm <= half of 2 mm
+    unresolved = guide.step(_estimate(SYSTEM.fk(q), position_sd(1.5)))  # sd 1.5 mm > half the threshold
+    assert not unresolved.done and unresolved.blocked and "too uncertain" in unresolved.blocked
+    assert unresolved.sd[0] == pytest.approx(1.5e-3, rel=0.05)
+    strict = guidance.Guide(SYSTEM, SYSTEM.fk(near), q, guidance.GuidanceOptions(stop_sigmas=1.0))
+    step = strict.step(_estimate(SYSTEM.fk(q), position_sd(0.8)))  # 1.5 mm + 0.8 mm > 2 mm: move again
     assert not step.done and SYSTEM.joint_names[step.joint] == "table_translation"
-    assert step.sd[0] > 5e-4
-    wide = guide.step(_estimate(SYSTEM.fk(q), np.diag([1e-16] * 3 + [9e-6] * 3)))  # 3 mm sd: never confirmed
-    assert not wide.done and wide.blocked and "too uncertain" in wide.blocked
     flagged = guide.step(_estimate(SYSTEM.fk(q), np.zeros((6, 6)), condition=1e5))
     assert flagged.ill_conditioned and not flagged.done and "ill-conditioned" in flagged.blocked
 
