@@ -23,7 +23,7 @@ may be ``(d − clearance) / speed`` further on without any pair coming closer t
 readings through the model's Jacobian (:func:`reading_covariance`), and so is the reference's to the goal;
 a joint counts as arrived only when ``|remaining| + stop_sigmas · sd(remaining) < threshold``
 (:attr:`GuidanceOptions.stop_sigmas`, default 0) and ``sd(remaining) <= max_sd_fraction · threshold``
-(default ½: the measurement resolves the threshold). A joint whose ``sd`` is larger can never be
+(default 1: the measurement resolves the threshold). A joint whose ``sd`` is larger can never be
 confirmed: the step is blocked and says so. An ill-conditioned estimate
 (:attr:`~.pose.PoseEstimate.ill_conditioned`) may show a move but never stops the guidance. Residuals far
 above the corner noise are refused earlier, by :func:`~.pose.solve_pose`.
@@ -60,8 +60,9 @@ DEFAULT_ORDER = ("table_translation", "vertical", "horizontal", "wigwag", "angul
 #: is set by where the operator stops, the reading sd (~0.5 mm, ~0.1°) being well below the thresholds.
 STOP_SIGMAS = 0.0
 #: Default of :attr:`GuidanceOptions.max_sd_fraction`: arrival is confirmed only where the sd of each
-#: remaining move is at most half its threshold (the measurement resolves the threshold).
-MAX_SD_FRACTION = 0.5
+#: remaining move (reference and current reading) is at most its threshold. Measured on 200 simulated tasks
+#: (seed 2, estimates passed): ½ blocked 7.5 % of them at references whose readings' sd is 1.1–1.5 mm.
+MAX_SD_FRACTION = 1.0
 
 
 @dataclass(frozen=True)

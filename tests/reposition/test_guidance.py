@@ -181,10 +181,12 @@ def test_the_stop_rule_accounts_for_the_pose_uncertainty():
     position_sd = lambda mm: np.diag([1e-16] * 3 + [(mm * 1e-3) ** 2] * 3)  # noqa: E731
     guide = guidance.Guide(SYSTEM, SYSTEM.fk(near), q)
     assert guide.step(_estimate(SYSTEM.fk(q), np.zeros((6, 6)))).done  # exact estimate: the seed's rule
-    assert guide.step(_estimate(SYSTEM.fk(q), position_sd(0.6))).done  # sd 0.6 mm <= half of 2 mm
-    unresolved = guide.step(_estimate(SYSTEM.fk(q), position_sd(1.5)))  # sd 1.5 mm > half the threshold
+    assert guide.step(_estimate(SYSTEM.fk(q), position_sd(1.5))).done  # sd 1.5 mm <= the 2 mm threshold
+    unresolved = guide.step(_estimate(SYSTEM.fk(q), position_sd(2.5)))  # sd 2.5 mm > the threshold
     assert not unresolved.done and unresolved.blocked and "too uncertain" in unresolved.blocked
-    assert unresolved.sd[0] == pytest.approx(1.5e-3, rel=0.05)
+    assert unresolved.sd[0] == pytest.approx(2.5e-3, rel=0.05)
+    half = guidance.Guide(SYSTEM, SYSTEM.fk(near), q, guidance.GuidanceOptions(max_sd_fraction=0.5))
+    assert "too uncertain" in half.step(_estimate(SYSTEM.fk(q), position_sd(1.5))).blocked
     strict = guidance.Guide(SYSTEM, SYSTEM.fk(near), q, guidance.GuidanceOptions(stop_sigmas=1.0))
     step = strict.step(_estimate(SYSTEM.fk(q), position_sd(0.8)))  # 1.5 mm + 0.8 mm > 2 mm: move again
     assert not step.done and SYSTEM.joint_names[step.joint] == "table_translation"
