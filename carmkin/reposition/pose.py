@@ -149,10 +149,12 @@ def _starts(obj: np.ndarray, img: np.ndarray, K: np.ndarray, T_previous) -> list
                 T = _camera_pose(r, t)
                 T[:3, 3] = centre + scale * T[:3, 3]
                 starts.append(T)
+    # cheirality: a start with a point behind the camera (the mirror pose) is dropped; of near-equal starts
+    # the one with the smaller reprojection error is kept
+    starts = [T for T in starts if np.all(_depths(T, obj) > 0)]
+    starts.sort(key=lambda T: float(np.sum(_residuals(K, T, obj, img) ** 2)))
     kept: list[np.ndarray] = []
     for T in starts:
-        if not np.all(_depths(T, obj) > 0):
-            continue  # cheirality: a point behind the camera (the mirror pose)
         if any(np.linalg.norm(T[:3, :3] - U[:3, :3]) < SAME_START
                and np.linalg.norm(T[:3, 3] - U[:3, 3]) < SAME_START * (scale + abs(_depths(U, obj)).max()) for U in kept):
             continue
@@ -202,13 +204,14 @@ def solve_pose(object_points, image_points, K, sigma_px: float | None = None, re
         T_previous = rigid_transform(T_previous, "T_previous", error=PoseError)
     best = None
     for start in _starts(obj, img, K, T_previous):
-        T = refine_minpack(K, start, obj, img) if refine == "minpack" else refine_opencv(K, start, obj, img)
-        r = _residuals(K, T, obj, img)
-        if not (np.all(np.isfinite(r)) and np.all(np.isfinite(T)) and np.all(_depths(T, obj) > 0)):
-            continue  # the refinement crossed to the mirror side or diverged
-        ssr = float(np.sum(r**2))
-        if best is None or ssr < best[1]:
-            best = (T, ssr, r)
+        refined = refine_minpack(K, start, obj, img) if refine == "minpack" else refine_opencv(K, start, obj, img)
+        for T in (refined, start):  # the start too: OpenCV's LM may end a hair above an exact start (1e-9 rad)
+            r = _residuals(K, T, obj, img)
+            if not (np.all(np.isfinite(r)) and np.all(np.isfinite(T)) and np.all(_depths(T, obj) > 0)):
+                continue  # the refinement crossed to the mirror side or diverged
+            ssr = float(np.sum(r**2))
+            if best is None or ssr < best[1]:
+                best = (T, ssr, r)
     if best is None:
         raise PoseError(f"no pose with every one of the {len(obj)} points in front of the camera explains the "
                         "corners (cheirality): check that object_points and image_points correspond")
