@@ -215,7 +215,7 @@ def test_measures_are_consistent(system, data, length):
     Js = sing.scaled_jacobian(system, q, length)
     assert np.linalg.det(Js) == pytest.approx(np.linalg.det(J), abs=1e-9)  # det is scale-free
     # squared: sqrt of a det near 0 turns its ~1e-15 rounding into ~1e-7 (a singular q, e.g. θ4 = ±90°)
-    assert m.manipulability ** 2 == pytest.approx(np.linalg.det(Js @ Js.T), abs=1e-12)
+    assert m.manipulability ** 2 == pytest.approx(np.linalg.det(Js @ Js.T), rel=1e-9, abs=1e-12)
     assert m.manipulability == pytest.approx(abs(np.linalg.det(J)), abs=1e-9)
     assert m.condition >= 1.0 and m.sigma_min == pytest.approx(np.linalg.svd(Js, compute_uv=False)[-1])
     # Js = diag(I/L, I) J diag(L for prismatic): prismatic linear entries unchanged, revolute ones divided by L.
