@@ -106,55 +106,80 @@ def rotation_error(R_a, R_b) -> float:
     return euler_mean(R_a, R_b)
 
 
-def run_task(room: Room, rng: np.random.Generator) -> Task:
-    """One §4.6.2 task in ``room`` (see the module docstring)."""
-    from carmkin.reposition import experiment
+@dataclass
+class Moves:
+    """The outcome of :func:`guide`: ``done`` (the display said stop), ``q`` the true joints reached,
+    ``reading`` the last displayed reading, ``steps`` manual moves made, ``reason`` when not done."""
+
+    done: bool
+    q: np.ndarray
+    reading: object
+    steps: int
+    reason: str | None = None
+
+
+def guide(room: Room, built, q_goal, q, q_last, rng: np.random.Generator) -> Moves:
+    """Continuous guidance of the true joints ``q`` to the model's goal ``q_goal`` (see the module
+    docstring); ``built``: the model (eq. 4.3), ``q_last``: the joints last read on it (IK branch choice)."""
     from carmkin.reposition.guidance import read_joints
-    from carmkin.reposition.model import model_from_pose
 
-    system, model = room.system, room.model
-    options = room.config.guidance
-
-    def reading(q):
-        return camera_reading(room.world, system.fk(q), room.T_source_camera, rng)
-
-    q_ref = experiment.sample_reference(room.world, room.config, rng, room.scene)
-    markers = experiment.xray_markers(room.world, q_ref, rng)
-    q = experiment.start_configuration(room.world, room.config, q_ref, rng)
-    try:
-        ref = reading(q_ref)
-        readout = model.readout(system, q, rng)
-        built = model_from_pose(system, reading(q).T, readout)
-        # "the required joint movements for repositioning were computed": the model's closed-form IK of the
-        # reference reading, the branch nearest the start (the collision-checked goal of Guide is not needed)
-        q_goal = read_joints(built, ref.T, readout, system.split(q)[1])
-    except CarmkinError as exc:
-        return Task(False, f"setup: {exc}")
+    system, model, options = room.system, room.model, room.config.guidance
     thresholds, order = options.thresholds(built), options.move_order(built)
-    operator, q_last, position = model.operator(), readout, 0
+    operator, position, steps, now = model.operator(), 0, 0, None
     resolution = np.where(system.prismatic, model.operator_translation, model.operator_rotation)
-    task = Task(False, f"not repositioned after {MAX_STEPS} guidance updates", q_reference=q_ref, markers=markers,
-                T_reference=system.fk(q_ref))
     for _ in range(MAX_STEPS):
-        now = reading(q)
         try:
+            now = camera_reading(room.world, system.fk(q), room.T_source_camera, rng)
             q_read = np.clip(read_joints(built, now.T, q_last, system.split(q)[1]), built.lower, built.upper)
         except CarmkinError as exc:
-            task.reason = f"step {task.steps}: {exc}"
-            break
+            return Moves(False, q, None, steps, f"step {steps}: {exc}")
         q_last = q_read
         remaining = q_goal - q_read
         if np.all(np.abs(remaining) < thresholds):
-            task.success, task.reason, task.readings = True, None, (ref, now)
-            task.translation = float(np.linalg.norm(now.T[:3, 3] - ref.T[:3, 3]))
-            task.rotation = rotation_error(ref.T[:3, :3], now.T[:3, :3])
-            break
+            return Moves(True, q, now, steps)
         # the operator aims at zero: the next joint of the cycle whose remaining move they can still make
         cycle = order[position:] + order[:position]
         j = next((k for k in cycle if abs(remaining[k]) > resolution[k]), cycle[0])
         position = (order.index(j) + 1) % len(order)
         q = operator.execute(system, q, j, float(remaining[j]), rng)
-        task.steps += 1
+        steps += 1
+    return Moves(False, q, now, steps, f"not repositioned after {MAX_STEPS} guidance updates")
+
+
+def build_model(room: Room, q, rng: np.random.Generator):
+    """(model, readout, reading): the eq. 4.3 model built at the true joints ``q`` from one camera reading
+    and the joint read-out."""
+    from carmkin.reposition.model import model_from_pose
+
+    reading = camera_reading(room.world, room.system.fk(q), room.T_source_camera, rng)
+    readout = room.model.readout(room.system, q, rng)
+    return model_from_pose(room.system, reading.T, readout), readout, reading
+
+
+def run_task(room: Room, rng: np.random.Generator) -> Task:
+    """One §4.6.2 task in ``room`` (see the module docstring)."""
+    from carmkin.reposition import experiment
+    from carmkin.reposition.guidance import read_joints
+
+    system, model = room.system, room.model
+    q_ref = experiment.sample_reference(room.world, room.config, rng, room.scene)
+    markers = experiment.xray_markers(room.world, q_ref, rng)
+    q = experiment.start_configuration(room.world, room.config, q_ref, rng)
+    try:
+        ref = camera_reading(room.world, system.fk(q_ref), room.T_source_camera, rng)
+        built, readout, _ = build_model(room, q, rng)
+        # "the required joint movements for repositioning were computed": the model's closed-form IK of the
+        # reference reading, the branch nearest the start (the collision-checked goal of Guide is not needed)
+        q_goal = read_joints(built, ref.T, readout, system.split(q)[1])
+    except CarmkinError as exc:
+        return Task(False, f"setup: {exc}")
+    moves = guide(room, built, q_goal, q, readout, rng)
+    task = Task(moves.done, moves.reason, moves.steps, q_reference=q_ref, markers=markers, T_reference=system.fk(q_ref))
+    q, now = moves.q, moves.reading
+    if moves.done:
+        task.readings = (ref, now)
+        task.translation = float(np.linalg.norm(now.T[:3, 3] - ref.T[:3, 3]))
+        task.rotation = rotation_error(ref.T[:3, :3], now.T[:3, :3])
     task.q_final, task.T_final = q, system.fk(q)
     task.true_translation = float(np.linalg.norm(task.T_final[:3, 3] - task.T_reference[:3, 3]))
     task.true_rotation = rotation_error(task.T_reference[:3, :3], task.T_final[:3, :3])
