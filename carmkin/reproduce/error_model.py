@@ -45,7 +45,7 @@ PROVENANCE = {
     "camera_xray_rotation": "assumption: 0.1 deg residual rotation of the camera-X-ray calibration ([50])",
     "mount_error": "assumption: pattern edges 'roughly parallel' to the table (§3.3.1): 2 deg",
     "calibration_positions": "assumption: 6 table positions for the §3.3.3 calibration",
-    "operator_relative": "assumption: 10 % of each manual move",
+    "operator_relative": "free: scaled with the operator's stop errors (default 10 % of each manual move)",
     "operator_translation": "free: fitted to §4.6.2 with operator_rotation (same scale); default 1 mm",
     "operator_rotation": "free: fitted to §4.6.2 with operator_translation (same scale); default 0.2 deg",
     "readout_translation": "assumption: 0.5 mm joint read-out (ruler / encoder) at the model's pose",
