@@ -11,7 +11,7 @@ Two procedures, as in the seed.
 
 **Table 3.2** (§3.4.1): a flat pattern of spherical markers parallel to the marker pattern at a measured
 distance, carrying 240 mm, 120 mm, 90° and 180° (layout, an assumption: A, B, C on a line 120 mm apart,
-D 30 mm beside B: AC = 240 mm, AB = 120 mm, ∠ABD = 90°, ∠ABC = 180°). A panorama covering it is made (A)
+D 15 mm beside B: AC = 240 mm, AB = 120 mm, ∠ABD = 90°, ∠ABC = 180°). A panorama covering it is made (A)
 parallax-free with VDP, (B) parallax-free without VDP and (C) by one-plane stitching: the C-arm kept in its
 calibrated orientation (the zero joints of the rotations), the table translated along its axis between
 images, each image warped by the homography of the phantom plane (eq. 4.17) from the two camera readings
@@ -55,7 +55,7 @@ ROTATION = math.radians(5.0)
 PHANTOM = dict(length=0.25, spacing=0.02, lateral=(-0.015, 0.0, 0.015), planes=3, gap=0.04, lift=0.02)
 #: Table 3.2 pattern in its frame (m): A, B, C along x, D beside B; its plane's distance above the marker
 #: pattern (assumption, as in :mod:`.stitching`).
-METRIC_POINTS = np.array([[-0.12, 0.0, 0.0], [0.0, 0.0, 0.0], [0.12, 0.0, 0.0], [0.0, 0.03, 0.0]])
+METRIC_POINTS = np.array([[-0.12, 0.0, 0.0], [0.0, 0.0, 0.0], [0.12, 0.0, 0.0], [0.0, 0.015, 0.0]])
 METRIC_ABOVE_PATTERN = 0.07
 ATTEMPTS = 20
 
@@ -177,7 +177,7 @@ def metric_measurements(room, rng: np.random.Generator, overlap: float = 0.1) ->
     n_table, d_table = normal, float(normal @ (M[:3, 3] + offset * normal))
     step = 0.9 * (d1 / n1[2]) * system.carm.detector_width / system.carm.source_to_detector
     one_plane = []
-    for k in (0, 1, -1, 2, -2):
+    for k in (0, 1, -1, 2, -2, 3, -3):
         qk = q.copy()
         qk[0] = q[0] - k * step + (model.operator_translation * rng.normal() if k else 0.0)
         now = first if k == 0 else camera_reading(room.world, system.fk(qk), room.T_source_camera, rng)
