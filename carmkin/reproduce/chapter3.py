@@ -137,10 +137,6 @@ def _measure(world_points) -> dict:
 
 def metric_measurements(room, rng: np.random.Generator, overlap: float = 0.1) -> dict:
     """One Table 3.2 procedure: method ("A", "B", "C") -> the four measured values (mm, degrees)."""
-    from carmkin.imaging import apply_homography, back_project, homography_between
-
-    from .measure import camera_reading, xray_points
-
     system, model = room.system, room.model
     offset = METRIC_ABOVE_PATTERN + model.plane_distance * rng.normal()
 
@@ -151,17 +147,24 @@ def metric_measurements(room, rng: np.random.Generator, overlap: float = 0.1) ->
         return [planner.principal_point_of(s, direction, d / n[2]) for s in aims]
 
     for _ in range(ATTEMPTS):
-        q_first = reference_configuration(system, rng)
-        T_pattern = phantom_frame(room, system.fk(q_first))
-        T_pattern[:3, 3] += (METRIC_ABOVE_PATTERN - 0.07) * T_pattern[:3, 2]
-        points = METRIC_POINTS @ T_pattern[:3, :3].T + T_pattern[:3, 3]
         try:
-            planner, reading, images = acquire(room, rng, q_first, aims_of)
-            break
-        except OutOfRange:
+            return _metric_attempt(room, rng, offset, aims_of)
+        except OutOfRange:  # a planned image beyond the joint ranges, or a marker in no image: elsewhere
             continue
-    else:
-        raise SimulationError(f"no first configuration in {ATTEMPTS} draws has its panorama within the ranges")
+    raise SimulationError(f"no first configuration in {ATTEMPTS} draws has its panoramas within the ranges")
+
+
+def _metric_attempt(room, rng, offset, aims_of) -> dict:
+    from carmkin.imaging import back_project, homography_between
+
+    from .measure import camera_reading
+
+    system, model = room.system, room.model
+    q_first = reference_configuration(system, rng)
+    T_pattern = phantom_frame(room, system.fk(q_first))
+    T_pattern[:3, 3] += (METRIC_ABOVE_PATTERN - 0.07) * T_pattern[:3, 2]
+    points = METRIC_POINTS @ T_pattern[:3, :3].T + T_pattern[:3, 3]
+    planner, reading, images = acquire(room, rng, q_first, aims_of)
     n, d = plane_in_panorama(room, reading, offset)
     out = {}
     for method, vdp in (("A", True), ("B", False)):
@@ -176,10 +179,10 @@ def metric_measurements(room, rng: np.random.Generator, overlap: float = 0.1) ->
     normal = M[:3, 2] * np.sign(M[:3, 2] @ np.array([0.0, -1.0, 0.0]))
     n_table, d_table = normal, float(normal @ (M[:3, 3] + offset * normal))
     step = 0.9 * (d1 / n1[2]) * system.carm.detector_width / system.carm.source_to_detector
-    one_plane = []
+    one_plane, d0 = [], system.joint_names.index("table_translation")
     for k in (0, 1, -1, 2, -2, 3, -3):
         qk = q.copy()
-        qk[0] = q[0] - k * step + (model.operator_translation * rng.normal() if k else 0.0)
+        qk[d0] = q[d0] - k * step + (model.operator_translation * rng.normal() if k else 0.0)
         now = first if k == 0 else camera_reading(room.world, system.fk(qk), room.T_source_camera, rng)
         one_plane.append((system.fk(qk), homography_between(planner.K, first.T, now.T, n_table, d_table)))
     out["C"] = _measure(back_project(planner.K, _panorama(system, one_plane, points, rng, model, False), n1, d1))
@@ -199,7 +202,7 @@ def _panorama(system, images, points, rng, model, vdp):
             out[seen] = apply_homography(H, xray_points(system, T, points[seen], rng, model.xray_noise_px,
                                                         model.sag, vdp))
     if np.isnan(out).any():
-        raise SimulationError("a marker of the metric pattern is in no image of the panorama")
+        raise OutOfRange("a marker of the metric pattern is in no image of the panorama")
     return out
 
 
