@@ -7,7 +7,8 @@ sampling error is that of its independent units — procedures, not markers, sin
 procedure share its pose errors: ``std / √procedures`` for a mean (none for a single measured value of
 Table 3.2). A number is **reproduced** when ``|seed − simulated| < 2 √(spread² + seed error²)``, **not
 reproduced** otherwise, and **undetermined** when it depends only on what the seed does not state (the
-marker counts: the phantoms' layouts are assumptions) or when no repeat succeeded.
+marker counts: the phantoms' layouts are assumptions), when no repeat succeeded, or when it is within
+2 σ only because the repeats spread over more than half their mean (:data:`WIDE`).
 """
 
 from __future__ import annotations
@@ -21,6 +22,9 @@ from .error_model import ErrorModel
 
 #: Reproduced when within this many combined standard errors.
 Z_LIMIT = 2.0
+#: A simulated value whose repeats spread more than this fraction of their mean cannot confirm a seed
+#: number (a wide spread makes any positive number "within 2 σ"): undetermined instead of reproduced.
+WIDE = 0.5
 
 
 @dataclass(frozen=True)
@@ -45,6 +49,9 @@ def judge(experiment: str, quantity: str, seed: float, values, seed_error: float
     mean, spread = float(values.mean()), float(values.std(ddof=1)) if values.size > 1 else 0.0
     scale = math.sqrt(spread**2 + seed_error**2)
     z = (seed - mean) / scale if scale > 0 else (0.0 if seed == mean else math.copysign(math.inf, seed - mean))
+    if abs(z) < Z_LIMIT and spread > WIDE * abs(mean):
+        return Row(experiment, quantity, seed, mean, spread, z, "undetermined",
+                   f"|z| = {abs(z):.1f}, but the repeats spread over more than half their mean: more repeats needed")
     verdict = "reproduced" if abs(z) < Z_LIMIT else "not reproduced"
     return Row(experiment, quantity, seed, mean, spread, z, verdict, reason or f"|z| = {abs(z):.1f}")
 
