@@ -49,8 +49,8 @@ MAX_STEPS = 60
 class Task:
     """One task's outcome (SI units). ``image_errors`` (16,) px; ``translation`` / ``rotation``: from the
     camera readings (the seed's definition), ``rotation_angle`` the angle of their relative rotation (the
-    other reading of "average of rotational difference around the three axes"); ``true_translation`` / ``true_rotation``: from the truth;
-    ``q_reference`` / ``q_final``: true joints; ``markers`` (16, 3) table frame; ``T_reference`` /
+    other reading of "average of rotational difference around the three axes"); ``true_translation`` /
+    ``true_rotation``: from the truth; ``q_reference`` / ``q_final``: true joints; ``markers`` (16, 3) table frame; ``T_reference`` /
     ``T_final``: true source poses; ``readings``: the reference and final :class:`~.measure.CameraReading`."""
 
     success: bool

@@ -8,7 +8,10 @@ procedure share its pose errors: ``std / √procedures`` for a mean (none for a 
 Table 3.2). A number is **reproduced** when ``|seed − simulated| < 2 √(spread² + seed error²)``, **not
 reproduced** otherwise, and **undetermined** when it depends only on what the seed does not state (the
 marker counts: the phantoms' layouts are assumptions), when no repeat succeeded, or when it is within
-2 σ only because the repeats spread over more than half their mean (:data:`WIDE`).
+2 σ only because the repeats spread over more than half their mean (:data:`WIDE`) — unless at least four
+repeats all lie on one side of the seed's number: then it is not reproduced (all four on one side of a
+value they are consistent with has probability at most 2/5 by exchangeability; the statement is weak and
+the table says so).
 """
 
 from __future__ import annotations
@@ -49,6 +52,10 @@ def judge(experiment: str, quantity: str, seed: float, values, seed_error: float
     mean, spread = float(values.mean()), float(values.std(ddof=1)) if values.size > 1 else 0.0
     scale = math.sqrt(spread**2 + seed_error**2)
     z = (seed - mean) / scale if scale > 0 else (0.0 if seed == mean else math.copysign(math.inf, seed - mean))
+    if abs(z) < Z_LIMIT and spread > WIDE * abs(mean) and not values.min() <= seed <= values.max() and values.size >= 4:
+        return Row(experiment, quantity, seed, mean, spread, z, "not reproduced",
+                   f"outside all {values.size} repeats ({values.min():.3g} to {values.max():.3g}); |z| = {abs(z):.1f} "
+                   "only through their spread")
     if abs(z) < Z_LIMIT and spread > WIDE * abs(mean):
         return Row(experiment, quantity, seed, mean, spread, z, "undetermined",
                    f"|z| = {abs(z):.1f}, but the repeats spread over more than half their mean: more repeats needed")

@@ -96,3 +96,4 @@ def test_judge_reproduced_not_reproduced_undetermined():
     assert verdict.judge("x", "q", 5.0, [1.0, 1.1, 0.9], seed_error=3.0).verdict == "reproduced"
     assert verdict.judge("x", "q", 5.0, [math.nan]).verdict == "undetermined"
     assert verdict.judge("x", "q", 2.0, [1.0, 20.0, 35.0]).verdict == "undetermined"  # too wide to decide
+    assert verdict.judge("x", "q", 2.0, [6.0, 20.0, 35.0, 33.0]).verdict == "not reproduced"  # all above it
