@@ -33,7 +33,7 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--tasks", type=integer(1), default=10, help="4.6.2: repositioning tasks (default 10, as the seed)")
     parser.add_argument("--fit-tasks", type=integer(2), default=10,
                         help="fit: tasks per grid point (default 10; the ten-task statistics are resampled)")
-    parser.add_argument("--repeats", type=integer(2), default=3, help="all: repeats of each experiment (default 3)")
+    parser.add_argument("--repeats", type=integer(2), default=4, help="all: repeats of each experiment (default 4)")
     parser.add_argument("--seed", type=integer(0), default=0, help="numpy seed (default 0)")
     parser.add_argument("--corner-noise-px", type=number(0.0, 20.0, unit="px"), default=None,
                         help="video corner noise in px (default: the fitted value)")

@@ -121,7 +121,7 @@ def verdict(system, model: ErrorModel, repeats: int = 3, experiments=tuple(EXPER
 
 
 def format_verdict(rows: list[Row]) -> str:
-    lines = [f"{'experiment':<7}{'quantity':<30}{'seed':>9}{'simulated':>18}  verdict (reason)"]
+    lines = [f"{'table':<7}{'quantity':<30}{'seed':>9}{'simulated':>18}  verdict (reason)"]
     for r in rows:
         sim = f"{r.simulated:9.2f} ± {r.spread:5.2f}" if np.isfinite(r.spread) else f"{r.simulated:9.2f}"
         lines.append(f"{r.experiment:<7}{r.quantity:<30}{r.seed:9.2f}{sim:>18}  {r.verdict} ({r.reason})")
