@@ -27,7 +27,7 @@ import math
 
 import numpy as np
 
-from carmkin.errors import CarmkinError, SimulationError
+from carmkin.errors import SimulationError
 
 from .error_model import ErrorModel
 from .repositioning import make_room, statistics
@@ -220,5 +220,3 @@ def format_table_3_2(result: dict) -> str:
     lines.append("A: parallax-free with VDP, B: parallax-free without VDP, C: one-plane stitching")
     return "\n".join(lines)
 
-
-__all__ = ["CarmkinError", "table_3_1", "table_3_2", "format_table_3_1", "format_table_3_2"]

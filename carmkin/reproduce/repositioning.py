@@ -35,6 +35,8 @@ import numpy as np
 
 from carmkin.errors import CarmkinError, SimulationError
 
+from carmkin.reposition.experiment import statistics
+
 from .error_model import ErrorModel, square_pixel_system
 from .measure import camera_reading, filtered_noise, pose_difference, xray_points
 
@@ -197,22 +199,18 @@ def run_task(room: Room, rng: np.random.Generator) -> Task:
     return task
 
 
-def run(system, model: ErrorModel = ErrorModel(), tasks: int = 10, seed: int = 0, guidance=None) -> list[Task]:
-    """``tasks`` tasks in one room (numpy seed ``seed``; ``guidance`` as in :func:`make_room`)."""
-    if int(tasks) < 1:
-        raise SimulationError(f"tasks must be >= 1, got {tasks}")
+def repeat(one, system, model: ErrorModel, count: int, seed: int, guidance=None, what: str = "tasks") -> list:
+    """``one(room, rng)`` ``count`` times in one room (numpy seed ``seed``; ``guidance`` as in :func:`make_room`)."""
+    if int(count) < 1:
+        raise SimulationError(f"{what} must be >= 1, got {count}")
     rng = np.random.default_rng(seed)
     room = make_room(system, model, rng, guidance)
-    return [run_task(room, rng) for _ in range(int(tasks))]
+    return [one(room, rng) for _ in range(int(count))]
 
 
-def statistics(values) -> tuple[float, float, float, float]:
-    """(mean, std, max, min) of the finite values (NaN when none)."""
-    values = np.asarray(values, dtype=float)
-    values = values[np.isfinite(values)]
-    if values.size == 0:
-        return (math.nan,) * 4
-    return float(values.mean()), float(values.std()), float(values.max()), float(values.min())
+def run(system, model: ErrorModel = ErrorModel(), tasks: int = 10, seed: int = 0, guidance=None) -> list[Task]:
+    """``tasks`` §4.6.2 tasks in one room (numpy seed ``seed``; ``guidance`` as in :func:`make_room`)."""
+    return repeat(run_task, system, model, tasks, seed, guidance)
 
 
 def summary(tasks: list[Task]) -> dict:

@@ -36,7 +36,7 @@ from carmkin.errors import CarmkinError, SimulationError
 
 from .error_model import ErrorModel
 from .measure import xray_points
-from .repositioning import build_model, guide, make_room, statistics
+from .repositioning import build_model, guide, repeat, statistics
 
 #: Table 4.6, per procedure and overall: image error mean, std (px), markers; distance error mean, std
 #: (mm); angle error mean, std (deg).
@@ -275,11 +275,7 @@ def run_procedure(room, rng: np.random.Generator, overlap: float = 0.1) -> Proce
 
 def run(system, model: ErrorModel = ErrorModel(), procedures: int = 5, seed: int = 0, guidance=None) -> list[Procedure]:
     """``procedures`` panoramas in one room (numpy seed ``seed``; ``guidance`` as in :func:`~.repositioning.make_room`)."""
-    if int(procedures) < 1:
-        raise SimulationError(f"procedures must be >= 1, got {procedures}")
-    rng = np.random.default_rng(seed)
-    room = make_room(system, model, rng, guidance)
-    return [run_procedure(room, rng) for _ in range(int(procedures))]
+    return repeat(run_procedure, system, model, procedures, seed, guidance, "procedures")
 
 
 def table(procedures: list[Procedure]) -> dict:
