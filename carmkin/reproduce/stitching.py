@@ -256,7 +256,7 @@ def run_procedure(room, rng: np.random.Generator, overlap: float = 0.1) -> Proce
     if in_first.sum() < 4:
         return Procedure(False, "fewer than 4 markers in the first image")
     try:
-        estimate = solve_pose(local[in_first], pano[in_first], planner.K)
+        estimate = solve_pose(local[in_first], pano[in_first], planner.K, sigma_px=model.xray_noise_px)
     except CarmkinError as exc:
         return Procedure(False, f"ground truth: {exc}")
     truth = project(planner.K, estimate.T, local)  # the synthetic ground-truth panorama, P = K[R|t]
