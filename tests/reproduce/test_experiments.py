@@ -85,7 +85,7 @@ def test_ten_task_statistics_of_identical_tasks_have_no_spread():
 
 
 def test_a_one_point_fit_reports_its_verdict():
-    result = fit.fit(SYSTEM, corner_noise=(0.5,), operator_scale=(0.4,), tasks=3, resamples=50)
+    result = fit.fit(SYSTEM, corner_noise=(0.5,), operator_scale=(0.4,), tasks=4, resamples=50)
     assert result.best in result.region and result.best.chi2 == pytest.approx(float(result.best.z @ result.best.z))
     assert "REPRODUCED" in result.verdict() and "chi2" in fit.format_fit(result)
 
