@@ -123,7 +123,7 @@ def fit(system, corner_noise=CORNER_NOISE_GRID, operator_scale=OPERATOR_SCALE_GR
             if progress is not None:
                 progress(len(points), n)
     if not points:
-        raise SimulationError("no grid point had a successful task")
+        raise SimulationError(f"no grid point had successful tasks in at least {MIN_SUCCESS:.0%} of its tasks")
     best = min(points, key=lambda p: p.chi2)
     region = [p for p in points if p.chi2 <= best.chi2 + DELTA_CHI2_95]
     p_value = float(chi2_distribution.sf(best.chi2, len(STATISTICS) - 2))
