@@ -32,6 +32,7 @@ Nothing is clipped: out-of-range joints are reported in :attr:`BranchStatus.exce
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import weakref
 from dataclasses import dataclass, field
@@ -50,13 +51,9 @@ from carmkin.model import singular_cases
 from carmkin.model.kinematics import check_configuration
 from carmkin.model.params import JOINT_NAMES, JOINT_RANGE_TOLERANCE, PRISMATIC
 from carmkin.model.per_system import per_system
-from carmkin.transforms import (
-    RIGID_TOLERANCE,
-    check_rigid_transform,
-    pose_error,
-    wrap_angle,
-)
-from carmkin.validation import JOINT_VALUE_LIMIT, MAGNITUDE_LIMIT
+from carmkin.analytic.poses import pose_batch, pose_rows
+from carmkin.transforms import pose_error, wrap_angle
+from carmkin.validation import JOINT_VALUE_LIMIT
 
 #: Below this |det J| (eq. 4.7, dimensionless) a pose is treated as singular and solved numerically. The
 #: closed form loses about eps/|factor| of accuracy; at 1e-5 that stays ~1e-10 m / rad for poses within a
@@ -120,13 +117,16 @@ class IKResult:
 
     ``solutions`` (2, 6): branch 0 (cos θ4 > 0) and branch 1, joint order ``[d0, d1, θ2, d3, θ4, θ5]``
     (m, rad); ``chosen``: index of the branch picked by the rules of §4.4.2; ``branches``: the two
-    :class:`BranchStatus`; ``det_j``: det J of eq. 4.7 at the pose (same for both branches).
+    :class:`BranchStatus`; ``det_j``: det J of eq. 4.7 at the pose (same for both branches);
+    ``pose_correction``: ``‖T_rigid − T‖_F`` by which a nearly rigid ``T`` was projected onto the nearest
+    rigid transform (:mod:`carmkin.analytic.poses`; 0 for a rigid one).
     """
 
     solutions: np.ndarray
     chosen: int
     branches: tuple
     det_j: float
+    pose_correction: float = 0.0
 
     @property
     def q(self) -> np.ndarray:
@@ -155,7 +155,8 @@ class BatchResult:
     """IK of N poses: ``solutions`` (2, N, 6); ``chosen`` (N,) int; ``within_limits`` (2, N) bool;
     ``excess`` (2, N, 6) signed excess (0 inside the range); ``singular`` (N, 3) bool, one column per case
     of :data:`SINGULAR_CASES`; ``numerical`` (N,) bool; ``reached`` (2, N) bool; ``det_j`` (N,).
-    ``residual`` (2, N) is computed on first access (batch FK)."""
+    ``residual`` (2, N) is computed on first access (batch FK); ``pose_correction`` (N,): as
+    :attr:`IKResult.pose_correction`, per pose."""
 
     solutions: np.ndarray
     chosen: np.ndarray
@@ -167,6 +168,7 @@ class BatchResult:
     det_j: np.ndarray
     _system: object = field(repr=False, compare=False)
     _poses: np.ndarray = field(repr=False, compare=False)
+    pose_correction: np.ndarray | None = None
 
     @property
     def q(self) -> np.ndarray:
@@ -544,59 +546,11 @@ class ClosedFormIK:
         return pick1.astype(np.intp)
 
 
-def _rigidity(a, b, c, d, e, f, g, h, i):
-    """``(||RᵀR − I||_F², det R)`` of R = [[a, b, c], [d, e, f], [g, h, i]] for floats or arrays: the tests of
-    :func:`check_rigid_transform` written out, since the generic check spends its time in small matrix
-    products (the speed of the scalar and batch paths)."""
-    m00, m11, m22 = a * a + d * d + g * g - 1.0, b * b + e * e + h * h - 1.0, c * c + f * f + i * i - 1.0
-    m01, m02, m12 = a * b + d * e + g * h, a * c + d * f + g * i, b * c + e * f + h * i
-    ortho = m00 * m00 + m11 * m11 + m22 * m22 + 2.0 * (m01 * m01 + m02 * m02 + m12 * m12)
-    return ortho, a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
-
-
-def _check_rigid_batch(T) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`check_rigid_transform` for (N, 4, 4), done element-wise on the rows (the generic check spends
-    its time in small matrix products); same tests and tolerances. Returns ``(T, rows)`` with ``rows`` the
-    (16, N) contiguous entries of T in row-major order."""
-    if not isinstance(T, np.ndarray) or T.ndim != 3 or T.shape[1:] != (4, 4) or T.dtype != np.float64:
-        T = check_rigid_transform(T, "Ts", batch=True)
-    rows = np.ascontiguousarray(T.reshape(len(T), 16).T)
-    a, b, c, px, d, e, f, py, g, h, i, pz, l0, l1, l2, l3 = rows
-    with np.errstate(invalid="ignore", over="ignore"):  # non-finite or huge entries fail `ok` below
-        ortho, det = _rigidity(a, b, c, d, e, f, g, h, i)
-    tol = RIGID_TOLERANCE
-    ok = (ortho <= tol * tol) & (np.abs(det - 1.0) <= tol) & (np.abs(l3 - 1.0) <= tol)
-    ok &= (np.abs(l0) <= tol) & (np.abs(l1) <= tol) & (np.abs(l2) <= tol)
-    ok &= (np.abs(px) <= MAGNITUDE_LIMIT) & (np.abs(py) <= MAGNITUDE_LIMIT) & (np.abs(pz) <= MAGNITUDE_LIMIT)
-    if not ok.all():  # NaN fails every comparison above
-        check_rigid_transform(T, "Ts", batch=True)  # raises the typed error naming the problem
-        bad = int(np.flatnonzero(~ok)[0])
-        check_rigid_transform(T[bad], f"Ts[{bad}]")
-    return T, rows
-
-
 @per_system
 def solver_for(system) -> ClosedFormIK:
     """The :class:`ClosedFormIK` of ``system``, built on first use and kept while the system lives
     (:func:`carmkin.model.per_system.per_system`; nothing is written into the frozen system)."""
     return ClosedFormIK(system)
-
-
-def _rows(T):
-    """``T`` as nested lists after a rigidity check in plain floats; the typed error of
-    :func:`check_rigid_transform` on failure."""
-    if type(T) is not np.ndarray or T.shape != (4, 4) or T.dtype != np.float64:
-        T = check_rigid_transform(T, "T")
-    rows = T.tolist()
-    (a, b, c, px), (d, e, f, py), (g, h, i, pz), last = rows
-    ok = (math.isfinite(a + b + c + d + e + f + g + h + i) and last == [0.0, 0.0, 0.0, 1.0]
-          and max(abs(px), abs(py), abs(pz)) <= MAGNITUDE_LIMIT)  # NaN fails the comparison
-    if ok:
-        ortho, det = _rigidity(a, b, c, d, e, f, g, h, i)
-        ok = ortho <= RIGID_TOLERANCE * RIGID_TOLERANCE and abs(det - 1.0) <= RIGID_TOLERANCE
-    if not ok:
-        check_rigid_transform(T, "T")  # raises InvalidPoseError naming the problem
-    return T, rows
 
 
 def _reference(q_current, n_joints: int = 6):
@@ -622,8 +576,10 @@ def solve(system, T, q_current=None) -> IKResult:
     extra table joints.
     """
     solver = solver_for(system)
-    T, rows = _rows(T)
-    return solver.solve(T, rows, _reference(q_current))
+    T, rows, correction = pose_rows(T, "T")
+    result = solver.solve(T, rows, _reference(q_current))
+    result.pose_correction = correction
+    return result
 
 
 def solve_batch(system, Ts, q_current=None) -> BatchResult:
@@ -633,7 +589,7 @@ def solve_batch(system, Ts, q_current=None) -> BatchResult:
     and ``reached`` False instead of an exception.
     """
     solver = solver_for(system)
-    Ts, rows = _check_rigid_batch(Ts)
+    Ts, rows, correction = pose_batch(Ts, "Ts")
     if q_current is None:
         q_ref = np.zeros(6)
     else:
@@ -641,4 +597,4 @@ def solve_batch(system, Ts, q_current=None) -> BatchResult:
         if q_ref.shape not in ((6,), (len(Ts), 6)):
             raise InvalidConfigurationError(
                 f"q_current must be finite with shape (6,) or ({len(Ts)}, 6), got {q_ref.shape}")
-    return solver.solve_batch(Ts, q_ref, rows)
+    return dataclasses.replace(solver.solve_batch(Ts, q_ref, rows), pose_correction=correction)

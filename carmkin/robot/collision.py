@@ -194,6 +194,10 @@ class CollisionScene:
     @classmethod
     def from_system(cls, system, obstacles: Sequence[Obstacle] = ()) -> "CollisionScene":
         """The C-arm scene of ``system`` with the documented pair list (:func:`carm_pair_names`)."""
+        if obstacles is None or isinstance(obstacles, (str, bytes, dict)) or not all(
+                isinstance(o, Obstacle) for o in obstacles):
+            raise CollisionSceneError(
+                f"obstacles must be a list of carmkin.robot.collision.Obstacle, got {obstacles!r}")
         model, geometry_model, _ = system.pinocchio()
         names = [g.name for g in geometry_model.geometryObjects]
         return cls(model, geometry_model, carm_pair_names(names, [o.name for o in obstacles]), obstacles, root="table")

@@ -17,6 +17,7 @@ import carmkin
 from carmkin import analytic_ik, transforms
 from carmkin.model import sampling
 from carmkin.model.params import JOINT_NAMES, JOINT_RANGE_TOLERANCE
+from carmkin.transforms import NEARLY_RIGID_TOLERANCE, nearest_rigid, pose_error
 
 REVOLUTE = [2, 4, 5]
 PRISMATIC = [0, 1, 3]
@@ -311,12 +312,43 @@ def test_result_contract():
     assert result.branches[0].status == "ok" and "out of range" in result.branches[1].status
 
 
+# --- nearly rigid poses (rounded by a user, stored as float32): projected, the correction reported -----------
+@settings(max_examples=50)
+@given(configurations(), st.sampled_from(["round4", "float32"]))
+def test_a_nearly_rigid_pose_is_projected_and_the_correction_reported(q, kind):
+    T = PRESET.fk(q)
+    rough = np.round(T, 4) if kind == "round4" else T.astype(np.float32)
+    rigid, correction = nearest_rigid(np.asarray(rough, dtype=float))  # the independent route
+    for result in (analytic_ik.solve(PRESET, rough), analytic_ik.solve_batch(PRESET, np.asarray(rough)[None])):
+        assert np.all(np.abs(np.atleast_1d(result.pose_correction) - correction) <= 1e-15)
+        solutions = np.asarray(result.solutions).reshape(2, 6)
+        for q_b in solutions:
+            if np.all(np.isfinite(q_b)):
+                position, angle = pose_error(PRESET.fk(q_b), rigid)
+                assert position <= 1e-9 and angle <= 1e-9
+
+
+def test_a_rigid_pose_has_no_correction():
+    T = PRESET.fk(np.zeros(6) + 0.1)
+    assert analytic_ik.solve(PRESET, T).pose_correction == 0.0
+    assert np.all(analytic_ik.solve_batch(PRESET, T[None]).pose_correction == 0.0)
+
+
+def test_a_pose_beyond_the_nearly_rigid_tolerance_names_nearest_rigid():
+    T = PRESET.fk(np.zeros(6) + 0.1)
+    T[0, 0] += 10 * NEARLY_RIGID_TOLERANCE
+    with pytest.raises(carmkin.InvalidPoseError, match="carmkin.transforms.nearest_rigid"):
+        analytic_ik.solve(PRESET, T)
+    with pytest.raises(carmkin.InvalidPoseError, match="carmkin.transforms.nearest_rigid"):
+        analytic_ik.solve_batch(PRESET, np.stack((np.eye(4), T)))
+
+
 # --- typed errors --------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("bad", [
     np.eye(3),
     np.diag([1.0, 1.0, -1.0, 1.0]),
     np.full((4, 4), np.nan),
-    np.eye(4) + 1e-6 * np.eye(4)[::-1],
+    np.eye(4) + 1e-2 * np.eye(4)[::-1],  # farther from rigid than NEARLY_RIGID_TOLERANCE
     [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 2]],
     "pose",
 ])
