@@ -27,12 +27,11 @@ import math
 
 import numpy as np
 
-from carmkin.errors import SimulationError
+from carmkin.errors import SimulationError, UnreachablePanoramaError
 
 from .error_model import ErrorModel
 from .repositioning import make_room, statistics
 from .stitching import (
-    OutOfRange,
     _in_image,
     acquire,
     outward_aims,
@@ -85,7 +84,7 @@ def overlap_errors(room, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarr
         try:
             _, _, images = acquire(room, rng, q_first, second)
             break
-        except OutOfRange:
+        except UnreachablePanoramaError:
             continue
     else:
         raise SimulationError(f"no first configuration in {ATTEMPTS} draws allows the second image")
@@ -149,7 +148,7 @@ def metric_measurements(room, rng: np.random.Generator, overlap: float = 0.1) ->
     for _ in range(ATTEMPTS):
         try:
             return _metric_attempt(room, rng, offset, aims_of)
-        except OutOfRange:  # a planned image beyond the joint ranges, or a marker in no image: elsewhere
+        except UnreachablePanoramaError:  # a planned image beyond the joint ranges, or a marker in no image: elsewhere
             continue
     raise SimulationError(f"no first configuration in {ATTEMPTS} draws has its panoramas within the ranges")
 
@@ -202,7 +201,7 @@ def _panorama(system, images, points, rng, model, vdp):
             out[seen] = apply_homography(H, xray_points(system, T, points[seen], rng, model.xray_noise_px,
                                                         model.sag, vdp))
     if np.isnan(out).any():
-        raise OutOfRange("a marker of the metric pattern is in no image of the panorama")
+        raise UnreachablePanoramaError("a marker of the metric pattern is in no image of the panorama")
     return out
 
 

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from carmkin.errors import SimulationError
+from carmkin.validation import real_array
 
 from .error_model import ErrorModel
 from .repositioning import SEED, run
@@ -101,11 +102,21 @@ class Fit:
                 f"{('mean', 'std')[worst[1]]} of {worst[0]}")
 
 
+def _grid(values, name: str, unit: str) -> np.ndarray:
+    values = real_array(values, name, (None,), error=SimulationError, unit=unit)
+    if values.size == 0 or np.any(values < 0):
+        raise SimulationError(f"{name} must be a non-empty grid of values >= 0{f' ({unit})' if unit else ''}, "
+                              f"got {values.tolist()}")
+    return values
+
+
 def fit(system, corner_noise=CORNER_NOISE_GRID, operator_scale=OPERATOR_SCALE_GRID, tasks: int = 12, seed: int = 0,
         base: ErrorModel = ErrorModel(), resamples: int = 400, progress=None) -> Fit:
     """The grid fit (see the module docstring); ``progress(i, n)`` after each grid point."""
     from scipy.stats import chi2 as chi2_distribution
 
+    corner_noise = _grid(corner_noise, "corner_noise", "px")
+    operator_scale = _grid(operator_scale, "operator_scale", "")
     target = seed_vector()
     points, n = [], len(corner_noise) * len(operator_scale)
     for sc in corner_noise:

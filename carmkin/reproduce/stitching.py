@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from carmkin.errors import CarmkinError, SimulationError
+from carmkin.errors import CarmkinError, SimulationError, UnreachablePanoramaError
 
 from .error_model import ErrorModel
 from .measure import xray_points
@@ -62,10 +62,6 @@ REFERENCE_SPREAD = {"table_translation": 0.05, "vertical": 0.03, "horizontal": 0
 #: First configurations tried per procedure before giving up (one whose panorama needs joints beyond
 #: their ranges is replaced: the surgeon would position the C-arm elsewhere).
 ATTEMPTS = 20
-
-
-class OutOfRange(SimulationError):
-    """A planned image of the panorama needs joints beyond their ranges."""
 
 
 @dataclass
@@ -186,7 +182,7 @@ def acquire(room, rng: np.random.Generator, q_first, principal_points_of, vdp: b
         goals.append((R, read_joints(built, planner.target_pose(R), q_last, system.split(q)[1])))
         q_last = goals[-1][1]
         if np.any(q_last < built.lower) or np.any(q_last > built.upper):
-            raise OutOfRange(f"image {len(goals) + 1} needs joints beyond their ranges")
+            raise UnreachablePanoramaError(f"image {len(goals) + 1} needs joints beyond their ranges")
     q_last = readout
     for R, q_goal in goals:
         moves = guide(room, built, q_goal, q, q_last, rng)
@@ -245,7 +241,7 @@ def run_procedure(room, rng: np.random.Generator, overlap: float = 0.1) -> Proce
         try:
             planner, reading, images = acquire(room, rng, q_first, principal_points_of)
             break
-        except OutOfRange:
+        except UnreachablePanoramaError:
             continue
         except CarmkinError as exc:
             return Procedure(False, str(exc))

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import carmkin
+from carmkin.errors import SimulationError
 from carmkin.reposition.guidance import GuidanceOptions
 from carmkin.reproduce import chapter3, fit, joints, repositioning, stitching, verdict
 from carmkin.reproduce.error_model import ErrorModel, square_pixel_system
@@ -88,6 +89,12 @@ def test_a_one_point_fit_reports_its_verdict():
     result = fit.fit(SYSTEM, corner_noise=(0.5,), operator_scale=(0.4,), tasks=4, resamples=50)
     assert result.best in result.region and result.best.chi2 == pytest.approx(float(result.best.z @ result.best.z))
     assert "REPRODUCED" in result.verdict() and "chi2" in fit.format_fit(result)
+
+
+@pytest.mark.parametrize("grid", [(), (-1.0,), ("a",), (math.nan,)])
+def test_a_bad_grid_is_refused_naming_it(grid):
+    with pytest.raises(SimulationError, match="corner_noise"):
+        fit.fit(SYSTEM, corner_noise=grid, operator_scale=(1.0,), tasks=2)
 
 
 def test_judge_reproduced_not_reproduced_undetermined():
