@@ -39,6 +39,9 @@ def register(parser: argparse.ArgumentParser) -> None:
                         help="video corner noise in px (default: the fitted value)")
     parser.add_argument("--operator-scale", type=number(0.0, 10.0), default=None,
                         help="operator stop errors as a multiple of 10 %% + 1 mm / 0.2 deg (default: the fitted value)")
+    parser.add_argument("--rotation", choices=("axes", "angle"), default="axes",
+                        help="fit: the seed's rotational error read as the mean |XYZ Euler angle| (axes, default) "
+                        "or as the angle of the relative rotation")
     parser.add_argument("--json", metavar="FILE", help="write the numbers as JSON")
     parser.add_argument("--plot", metavar="FILE", help="4.6.2: per-joint sensitivity and image share; fit: chi2 map")
 
@@ -77,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
             joints.plot_decomposition(square, table).savefig(args.plot)
             print(f"wrote {args.plot}")
     if args.table == "fit":
-        result = fit.fit(system, tasks=args.fit_tasks, seed=args.seed)
+        result = fit.fit(system, tasks=args.fit_tasks, seed=args.seed, rotation=args.rotation)
         print(fit.format_fit(result))
         out["fit"] = {"best": [result.best.corner_noise_px, result.best.operator_scale], "chi2": result.best.chi2,
                       "p_value": result.p_value, "reproduced": result.reproduced,

@@ -46,9 +46,18 @@ Z_LIMIT = 2.0
 SEED_TASKS = 10
 
 
-def task_values(tasks) -> list[tuple[np.ndarray, float, float]]:
-    """Per successful task: (image errors px, translation mm, rotation deg) as the seed measured them."""
-    return [(t.image_errors, 1e3 * t.translation, math.degrees(t.rotation)) for t in tasks if t.success]
+#: The two readings of the seed's "average of rotational difference around the three axes": the mean
+#: absolute XYZ Euler angle (default) or the angle of the relative rotation.
+ROTATIONS = ("axes", "angle")
+
+
+def task_values(tasks, rotation: str = "axes") -> list[tuple[np.ndarray, float, float]]:
+    """Per successful task: (image errors px, translation mm, rotation deg) as the seed measured them, the
+    rotation read as ``rotation`` (:data:`ROTATIONS`)."""
+    if rotation not in ROTATIONS:
+        raise SimulationError(f"rotation must be one of {ROTATIONS}, got {rotation!r}")
+    return [(t.image_errors, 1e3 * t.translation, math.degrees(t.rotation if rotation == "axes" else t.rotation_angle))
+            for t in tasks if t.success]
 
 
 def ten_task_statistics(values, rng: np.random.Generator, resamples: int = 400) -> np.ndarray:
@@ -111,8 +120,9 @@ def _grid(values, name: str, unit: str) -> np.ndarray:
 
 
 def fit(system, corner_noise=CORNER_NOISE_GRID, operator_scale=OPERATOR_SCALE_GRID, tasks: int = 12, seed: int = 0,
-        base: ErrorModel = ErrorModel(), resamples: int = 400, progress=None) -> Fit:
-    """The grid fit (see the module docstring); ``progress(i, n)`` after each grid point."""
+        base: ErrorModel = ErrorModel(), resamples: int = 400, progress=None, rotation: str = "axes") -> Fit:
+    """The grid fit (see the module docstring); ``progress(i, n)`` after each grid point; ``rotation``: the
+    reading of the seed's rotational error (:data:`ROTATIONS`)."""
     from scipy.stats import chi2 as chi2_distribution
 
     corner_noise = _grid(corner_noise, "corner_noise", "px")
@@ -123,7 +133,7 @@ def fit(system, corner_noise=CORNER_NOISE_GRID, operator_scale=OPERATOR_SCALE_GR
         for s in operator_scale:
             model = base.replace(corner_noise_px=float(sc)).with_operator_scale(float(s))
             simulated = run(system, model, tasks, seed)
-            values = task_values(simulated)
+            values = task_values(simulated, rotation)
             if len(values) < max(3, MIN_SUCCESS * len(simulated)):
                 continue  # too few repositioned tasks: the point is left out of the fit (printed blank)
             stats = ten_task_statistics(values, np.random.default_rng(seed), resamples)

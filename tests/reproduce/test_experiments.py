@@ -104,3 +104,17 @@ def test_judge_reproduced_not_reproduced_undetermined():
     assert verdict.judge("x", "q", 5.0, [math.nan]).verdict == "undetermined"
     assert verdict.judge("x", "q", 2.0, [1.0, 20.0, 35.0]).verdict == "undetermined"  # too wide to decide
     assert verdict.judge("x", "q", 2.0, [6.0, 20.0, 35.0, 33.0]).verdict == "not reproduced"  # all above it
+
+
+def test_the_two_readings_of_the_rotational_error():
+    """For small rotations the XYZ Euler angles are the rotation vector's components, so their mean absolute
+    value is at most the rotation's angle and at least a third of it."""
+    tasks = [t for t in repositioning.run(SYSTEM, ErrorModel(corner_noise_px=0.5), tasks=3, seed=4) if t.success]
+    assert tasks
+    for t in tasks:
+        assert t.rotation_angle / 3 * (1 - 1e-3) <= t.rotation <= t.rotation_angle * (1 + 1e-3)
+    axes, angle = fit.task_values(tasks, "axes"), fit.task_values(tasks, "angle")
+    assert [a[2] for a in axes] == [math.degrees(t.rotation) for t in tasks]
+    assert [a[2] for a in angle] == [math.degrees(t.rotation_angle) for t in tasks]
+    with pytest.raises(SimulationError, match="rotation"):
+        fit.task_values(tasks, "euler")
