@@ -203,6 +203,14 @@ class SimulationError(CarmkinError):
     """Bad simulation settings (noise levels, counts)."""
 
 
+# --- carmkin.reproduce ----------------------------------------------------------------------------
+
+
+class UnreachablePanoramaError(SimulationError):
+    """A planned image of a simulated panorama needs joints beyond their ranges, or leaves a marker in no
+    image: the procedure draws another first position (carmkin.reproduce.stitching, .chapter3)."""
+
+
 # --- carmkin.interop.simulators ------------------------------------------------------------------
 
 

@@ -22,6 +22,7 @@ LAYERS = (
     ("carmkin.analytic", "carmkin.analytic_ik"),
     ("carmkin.qp", "carmkin.qp_ik", "carmkin.singularity"),
     ("carmkin.studies", "carmkin.imaging", "carmkin.reposition", "carmkin.interop", "carmkin.plots"),
+    ("carmkin.reproduce",),  # the dissertation's experiments: above the applications they simulate
     ("carmkin.viz",),
     ("carmkin.commands", "carmkin.cli"),
 )
