@@ -266,13 +266,6 @@ KNOWN = {
     "analytic_ik.solve": "a junk system (None, str, bool, ...) raises AttributeError in carmkin/analytic_ik.py "
                          "(owner: solver)",
     "qp_ik.solve": "a junk system raises AttributeError in carmkin/qp_ik.py (owner: solver)",
-    "reposition.solve_pose": "exactly fronto-parallel 4-point / grid boards with exact corners give a wrong pose; "
-                             "junk K raises TypeError in reposition/camera.check_intrinsics; nearly collinear "
-                             "points raise cv2.error from SQPNP (owner: pose)",
-    "reposition.calibrate_table": "a still marker (no camera motion) is accepted, with a leaked RuntimeWarning "
-                                  "(owner: pose)",
-    "reposition.camera.project_points": "junk K raises TypeError (check_intrinsics), a (3,) point IndexError, "
-                                        "points behind the camera come back as inf pixels with a warning (owner: pose)",
     "robot.validity.check": "a junk system raises AttributeError in carmkin/robot/validity.py (not in this wave's "
                             "files: for the lead)",
 }

@@ -23,6 +23,7 @@ LAYERS = (
     ("carmkin.qp", "carmkin.qp_ik", "carmkin.singularity"),
     ("carmkin.studies", "carmkin.imaging", "carmkin.reposition", "carmkin.interop", "carmkin.plots",
      "carmkin.sweeps"),
+    ("carmkin.reproduce",),  # the dissertation's experiments: above the applications they simulate
     ("carmkin.viz",),
     ("carmkin.commands", "carmkin.cli"),
 )
