@@ -13,7 +13,7 @@ from strategies import PRESET, configurations, motorized_systems
 
 from carmkin.robot.collision import CollisionScene, Obstacle
 from carmkin.sweeps import Limit, plan_sweep
-from carmkin.sweeps.clearance import DISTANCE_ACCURACY, speed_bounds
+from carmkin.sweeps.clearance import accuracy, speed_bounds
 
 #: Acceptance (issue 22): intermediate angles are checked at this step.
 CHECK_STEP = math.radians(0.1)
@@ -71,6 +71,6 @@ def test_speed_bound_is_sound(data):
     # separated pairs only (by 1 mm, the regime advancement steps in with the default 10 mm margin): coal's
     # penetration depth of overlapping boxes depends on its warm start (the same q can give different depths)
     apart = (d1 > 1e-3) & (d2 > 1e-3)
-    bound = S @ np.abs(q2 - q1) + 2 * DISTANCE_ACCURACY
+    bound = S @ np.abs(q2 - q1) + accuracy(d1) + accuracy(d2)
     bad = np.flatnonzero(apart & (np.abs(d2 - d1) > bound))
     assert not len(bad), [(scene.pairs[k], d1[k], d2[k], bound[k], q1.tolist(), q2.tolist()) for k in bad]
