@@ -87,9 +87,9 @@ def solve_poses(system, T: np.ndarray, q_ref: np.ndarray) -> tuple[np.ndarray, n
     q_current = np.clip(q_ref, system.lower, system.upper)
     for k in range(len(T)):
         result = qp_ik.solve(system, T[k], q_current=q_current[k], accept=lambda report: True)
-        if np.all(np.isfinite(result.q)):
+        if result.success:  # an unconverged attempt is not a frame: NaN, reported as unreachable
             q[k] = result.q
-            reached[k] = bool(result.success)
+            reached[k] = True
     return q, reached
 
 
