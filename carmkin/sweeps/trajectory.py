@@ -24,6 +24,9 @@ import numpy as np
 
 from carmkin.errors import SweepError
 
+#: Convergence (m, rad) of frames no closed form solves (the closed forms are exact): the target stays on the
+#: principal axis to 1e-9 m on every system.
+QP_TOLERANCE = 1e-10
 #: Default sweep joint (the Siremobile Iso-C 3D acquires by orbital rotation, the preset's ±95°).
 DEFAULT_JOINT = "orbital"
 
@@ -80,13 +83,16 @@ def solve_poses(system, T: np.ndarray, q_ref: np.ndarray) -> tuple[np.ndarray, n
         return result.q, result.reached[result.chosen, index] & np.all(np.isfinite(result.q), axis=1)
     from carmkin import qp_ik
 
+    options = qp_ik.QPIKOptions(position_tolerance=QP_TOLERANCE, angle_tolerance=QP_TOLERANCE)
     q = np.full((len(T), system.nq), np.nan)
     reached = np.zeros(len(T), dtype=bool)
     # q_current is the branch reference and the held value of the table's other joints, which qp_ik wants in
     # range; a plain trajectory may run past a limit (that is reported by the caller, not here)
     q_current = np.clip(q_ref, system.lower, system.upper)
     for k in range(len(T)):
-        result = qp_ik.solve(system, T[k], q_current=q_current[k], accept=lambda report: True)
+        # deterministic seeds only (closed-form branches, q_current, mid-range): a frame is near the previous one
+        result = qp_ik.solve(system, T[k], q_current=q_current[k], accept=lambda report: True, random_seeds=0,
+                             options=options)
         if result.success:  # an unconverged attempt is not a frame: NaN, reported as unreachable
             q[k] = result.q
             reached[k] = True
