@@ -40,6 +40,21 @@ class InvalidPoseError(CarmkinError):
     """A pose is not a 4x4 rigid transform (wrong shape, NaN/Inf, not orthonormal, det != 1)."""
 
 
+# --- carmkin.extras ------------------------------------------------------------------------------
+
+
+class MissingExtraError(CarmkinError):
+    """An optional dependency (an extra: OpenCV, pydicom, torch/nanodrr/nibabel, ...) is not installed.
+
+    The message names the missing module and the pip command that installs the extra. Attributes:
+    ``module`` (the import name), ``extra`` (the name in ``carmkin[...]``).
+    """
+
+    def __init__(self, message: str, module: str = "", extra: str = "") -> None:
+        super().__init__(message)
+        self.module, self.extra = module, extra
+
+
 # --- carmkin.robot.collision ---------------------------------------------------------------------
 
 
@@ -160,6 +175,13 @@ class PoseError(CarmkinError):
     """Bad input to pose estimation (shapes, too few points, non-finite values) or no solution."""
 
 
+# --- carmkin.reposition.model -------------------------------------------------------------------
+
+
+class RepositionModelError(CarmkinError):
+    """Bad input to the model from a measured pose (system, pose, joint readings, covariance)."""
+
+
 # --- carmkin.reposition.calibration --------------------------------------------------------------
 
 
@@ -181,6 +203,14 @@ class SimulationError(CarmkinError):
     """Bad simulation settings (noise levels, counts)."""
 
 
+# --- carmkin.reproduce ----------------------------------------------------------------------------
+
+
+class UnreachablePanoramaError(SimulationError):
+    """A planned image of a simulated panorama needs joints beyond their ranges, or leaves a marker in no
+    image: the procedure draws another first position (carmkin.reproduce.stitching, .chapter3)."""
+
+
 # --- carmkin.interop.simulators ------------------------------------------------------------------
 
 
@@ -193,6 +223,15 @@ class SimulatorConventionError(CarmkinError):
 
 class DicomGeometryError(CarmkinError):
     """A DICOM geometry value is out of range or a dataset lacks what a conversion needs."""
+
+
+class DicomAttributeError(DicomGeometryError):
+    """A dataset's attribute is missing, empty, of the wrong type, not finite or outside the standard's range:
+    the message names the attribute's keyword and tag (``keyword`` and ``tag`` hold them)."""
+
+    def __init__(self, message: str, keyword: str = "", tag: str = ""):
+        super().__init__(message)
+        self.keyword, self.tag = keyword, tag
 
 
 # --- carmkin.interop.drr -------------------------------------------------------------------------

@@ -36,26 +36,27 @@ def _save(fig: Figure, path, **kwargs) -> Figure:
 # --- singularity -------------------------------------------------------------------------------------------
 def singularity_maps(system, q, path=None, pair: tuple[int, int] = (4, 5), n: int = 61,
                      measure: str = "inverse-condition", length: float | None = None) -> Figure:
-    """Two maps: |det J| over (θ2, θ4) and ``measure`` over ``pair`` (joint indices of the 6-DOF chain), the
-    other joints at ``q``; singular curves overlaid, joint limits dashed. Axes in degrees (revolute) or mm
-    (prismatic). Saved as PNG to ``path`` when given."""
+    """Two maps: |det J| over (wigwag, angular) and ``measure`` over ``pair`` (two joints by name or index, any
+    system), the other joints at ``q``; singular curves overlaid, joint limits dashed. Axes in degrees
+    (revolute) or mm (prismatic). Saved as PNG to ``path`` when given."""
     from matplotlib.patches import Rectangle
 
-    from carmkin.model.params import JOINT_NAMES, PRISMATIC
     from carmkin.model.singular_cases import SingularCase
-    from carmkin.singularity import measure_map, singular_curves
+    from carmkin.singularity import _pair, measure_map, singular_curves
+
+    names, prismatic = system.joint_names, system.prismatic
 
     def label(joint: int) -> str:
-        return f"{JOINT_NAMES[joint]} ({'mm' if PRISMATIC[joint] else 'deg'})"
+        return f"{names[joint]} ({'mm' if prismatic[joint] else 'deg'})"
 
     fig = _figure((12, 5), layout="constrained")
-    panels = (((2, 4), "det"), (tuple(pair), measure))
+    panels = ((_pair(system, ("wigwag", "angular")), "det"), (_pair(system, pair), measure))
     for ax, (pr, meas) in zip(fig.subplots(1, 2), panels):
         x, y, values = measure_map(system, q, pr, n, meas, length)
-        scale = [1e3 if PRISMATIC[k] else 180.0 / math.pi for k in pr]
+        scale = [1e3 if prismatic[k] else 180.0 / math.pi for k in pr]
         mesh = ax.pcolormesh(x * scale[0], y * scale[1], values, shading="auto", cmap="viridis")
         fig.colorbar(mesh, ax=ax, label="|det J| (eq. 4.7)" if meas == "det" else meas)
-        for case, joint, value in singular_curves(system, pr):
+        for case, joint, value in singular_curves(system, pr, q):
             color = "red" if case == SingularCase.ORBITAL_PARALLEL_TO_WIGWAG else "orange"
             style = dict(color=color, lw=1.5, label=f"case ({case})")
             k = pr.index(joint)
@@ -73,7 +74,7 @@ def singularity_maps(system, q, path=None, pair: tuple[int, int] = (4, 5), n: in
             unique = dict(zip(labels, handles))
             ax.legend(unique.values(), unique.keys(), loc="upper right", fontsize=8)
         title = "|det J|" if meas == "det" else meas
-        ax.set_title(f"{title} over ({JOINT_NAMES[pr[0]]}, {JOINT_NAMES[pr[1]]}); sin γ1 = "
+        ax.set_title(f"{title} over ({names[pr[0]]}, {names[pr[1]]}); sin γ1 = "
                      f"{math.sin(system.setup.gamma1):+.3f}", fontsize=10)
     fig.suptitle(f"{system.name}: singularity maps (other joints at q)")
     return _save(fig, path, dpi=100)
@@ -85,7 +86,7 @@ def workspace_excess(result, path=None, joints: Sequence[str] = ("wigwag", "hori
     :class:`~carmkin.studies.workspace.StudyResult`, with the dissertation's means and K as red crosses."""
     from carmkin.studies.workspace import DISSERTATION_TABLE_4_5, UNITS, translation_key
 
-    fig = _figure((5.5 * len(joints), 6.5))
+    fig = _figure((5.5 * len(joints), 6.5), layout="constrained")
     axes = fig.subplots(2, len(joints), sharex=True, squeeze=False)
     d0 = np.array([r.translation * 1e3 for r in result.results])
     for col, joint in enumerate(joints):
@@ -109,14 +110,13 @@ def workspace_excess(result, path=None, joints: Sequence[str] = ("wigwag", "hori
         axes[1, col].set_ylabel("K (poses out of range)")
         axes[1, col].set_xlabel("table translation d0 (mm)")
     fig.suptitle(f"5-DOF IK of 6-DOF poses, {result.system} (§4.6.1, Table 4.5)")
-    fig.tight_layout()
     return _save(fig, path, dpi=120)
 
 
 def table_reach(results, labels: dict[str, str], path=None) -> Figure:
     """Bar chart of the reachable fraction per table model (:class:`~carmkin.studies.table_workspace.ModelReach`
     results; ``labels``: model -> display name)."""
-    fig = _figure((7, 3.6))
+    fig = _figure((7, 3.6), layout="constrained")
     ax = fig.subplots()
     fractions = [100 * r.fraction for r in results]
     ax.bar([labels[r.model].replace(" (", "\n(").replace(", ", ",\n", 1) for r in results], fractions,
@@ -127,7 +127,6 @@ def table_reach(results, labels: dict[str, str], path=None) -> Figure:
     ax.set_ylabel("desired poses reachable (%)")
     ax.tick_params(axis="x", labelsize=7)
     ax.set_title(f"Reach by table DOFs ({len(results[0].reached)} poses)")
-    fig.tight_layout()
     return _save(fig, path)
 
 
@@ -147,20 +146,21 @@ def panorama_validity_map(planner, us, vs, categories: np.ndarray, labels: Seque
     from carmkin.imaging.camera import image_border
 
     colors = list(VALIDITY_COLORS)
-    fig = _figure((7, 5))
+    fig = _figure((8, 5), layout="constrained")
     ax = fig.subplots()
     du, dv = (us[1] - us[0]) if len(us) > 1 else 1.0, (vs[1] - vs[0]) if len(vs) > 1 else 1.0
     ax.imshow(categories, cmap=ListedColormap(colors), vmin=-0.5, vmax=len(labels) - 0.5, origin="upper",
               extent=(us[0] - du / 2, us[-1] + du / 2, vs[-1] + dv / 2, vs[0] - dv / 2), interpolation="nearest")
     border = image_border(*planner.size)
     ax.plot(border[:, 0], border[:, 1], "b-", lw=1.5, label="reference image")
-    for shot in shots:
-        ax.plot(shot.outline[:, 0], shot.outline[:, 1], "w--", lw=1)
-        ax.plot(*shot.principal_point, "w+")
+    for k, shot in enumerate(shots):
+        ax.plot(shot.outline[:, 0], shot.outline[:, 1], "w--", lw=1, label="planned shot: border" if k == 0 else None)
+        ax.plot(*shot.principal_point, "w+", label="planned shot: principal point" if k == 0 else None)
     ax.set_xlabel("u (px, panorama frame)")
     ax.set_ylabel("v (px)")
     ax.set_title("validity of principal points (§4.4.3)")
-    ax.legend(handles=[Patch(color=c, label=n) for c, n in zip(colors, labels)], loc="upper left",
-              bbox_to_anchor=(1.01, 1.0), fontsize=7)
+    lines, _ = ax.get_legend_handles_labels()
+    fig.legend(handles=[Patch(color=c, label=n) for c, n in zip(colors, labels)] + lines, loc="outside right upper",
+               fontsize=7, facecolor="0.75", title="colour: validity (§4.4.3)", title_fontsize=7)
     ax.set_aspect("equal")
-    return _save(fig, path, dpi=110, bbox_inches="tight")
+    return _save(fig, path, dpi=110)

@@ -16,12 +16,13 @@ ROOT = Path(__file__).resolve().parents[1]
 
 #: Layers in data-flow order; a module may import from its layer and the ones before it.
 LAYERS = (
-    ("carmkin.errors", "carmkin.validation", "carmkin.transforms"),
+    ("carmkin.errors", "carmkin.validation", "carmkin.extras", "carmkin.transforms"),
     ("carmkin.model", "carmkin.presets"),
     ("carmkin.robot",),
     ("carmkin.analytic", "carmkin.analytic_ik"),
     ("carmkin.qp", "carmkin.qp_ik", "carmkin.singularity"),
     ("carmkin.studies", "carmkin.imaging", "carmkin.reposition", "carmkin.interop", "carmkin.plots"),
+    ("carmkin.reproduce",),  # the dissertation's experiments: above the applications they simulate
     ("carmkin.viz",),
     ("carmkin.commands", "carmkin.cli"),
 )
