@@ -17,23 +17,12 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from _timing import row  # noqa: E402
+from _timing import per_target_medians, row  # noqa: E402
 
 import carmkin  # noqa: E402
 from carmkin import analytic_ik  # noqa: E402
 from carmkin.analytic import dls as numerical_ik  # noqa: E402
 from carmkin.model.sampling import random_configurations, random_system  # noqa: E402
-
-
-def per_target_medians(call, targets, inner: int) -> float:
-    """Median over targets of the mean time of ``inner`` calls on that target (s)."""
-    times = []
-    for T in targets:
-        start = time.perf_counter()
-        for _ in range(inner):
-            call(T)
-        times.append((time.perf_counter() - start) / inner)
-    return statistics.median(times)
 
 
 def view_grid(system, shift_deg: float = 0.0) -> np.ndarray:

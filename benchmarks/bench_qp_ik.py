@@ -23,7 +23,9 @@ bounding-box broad phase, exact coal distances where they decide) beside coal on
 from __future__ import annotations
 
 import argparse
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
@@ -33,6 +35,9 @@ import carmkin
 from carmkin.qp.tasks import PoseTask
 from carmkin.qp_ik import BACKENDS, QPIK, QPIKOptions, default_backend
 from carmkin.robot.collision import CollisionScene, Obstacle
+
+sys.path.insert(0, str(Path(__file__).parent))
+from _timing import per_target_medians  # noqa: E402
 
 TOL = 1e-6
 
@@ -210,17 +215,6 @@ def main() -> int:
     return 0
 
 
-def per_target(call, targets, inner: int = 20) -> float:
-    """Median over targets of the mean time of ``inner`` calls on that target (s)."""
-    times = []
-    for target in targets:
-        start = time.perf_counter()
-        for _ in range(inner):
-            call(target)
-        times.append((time.perf_counter() - start) / inner)
-    return float(np.median(times))
-
-
 def prepared_solve(system, n: int, rng) -> None:
     """A prepared 6-DOF solve with its collision check against the unchecked closed form (issue 20: <= 5x)."""
     from carmkin import analytic_ik, qp_ik
@@ -230,9 +224,9 @@ def prepared_solve(system, n: int, rng) -> None:
     targets = list(system.fk(qs[solver.reachable(qs)][:n]))
     results = [solver.solve(T) for T in targets]
     assert all(r.success and r.path == qp_ik.Path.CLOSED_FORM for r in results)
-    closed = per_target(lambda T: analytic_ik.solve(system, T), targets)
-    prepared = per_target(solver.solve, targets)
-    wrapper = per_target(lambda T: qp_ik.solve(system, T), targets)
+    closed = per_target_medians(lambda T: analytic_ik.solve(system, T), targets)
+    prepared = per_target_medians(solver.solve, targets)
+    wrapper = per_target_medians(lambda T: qp_ik.solve(system, T), targets)
     print(f"{len(targets)} reachable targets (closed form accepted at the {solver.margin * 1e3:g} mm margin):")
     print(f"  analytic_ik.solve, no collision check (baseline)   {closed * 1e6:8.1f} us")
     print(f"  prepared qp_ik solve + collision check              {prepared * 1e6:8.1f} us  "

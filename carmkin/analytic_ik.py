@@ -61,6 +61,7 @@ from carmkin.errors import (  # noqa: F401 (defined there, raised here)
 )
 from carmkin.model.kinematics import check_configuration
 from carmkin.model.per_system import per_system
+from carmkin.robot.validity import require_system
 from carmkin.validation import JOINT_VALUE_LIMIT
 
 
@@ -93,6 +94,7 @@ def solve(system, T, q_current=None) -> IKResult:
     when a singular pose cannot be solved numerically, :class:`UnsupportedSystemError` for a system with
     extra table joints.
     """
+    require_system(system, UnsupportedSystemError)
     ik = solver_for(system)
     T, rows, correction = pose_rows(T, "T")
     q_ref = _reference(q_current)
@@ -112,6 +114,7 @@ def solve_batch(system, Ts, q_current=None) -> BatchResult:
     the numerical fallback one by one; an unsolved one gets NaN solutions and ``reached`` False instead of an
     exception.
     """
+    require_system(system, UnsupportedSystemError)
     solver = solver_for(system)
     Ts, rows, correction = pose_batch(Ts, "Ts")
     if q_current is None:

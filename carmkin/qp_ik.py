@@ -32,7 +32,7 @@ from carmkin.qp.backends import (
 from carmkin.qp.limits import CollisionAvoidance, JointLimits
 from carmkin.qp.loop import QPIK
 from carmkin.qp.options import MARGIN_TOLERANCE, SOURCE_FRAME, QPIKError, QPIKOptions, SearchOptions
-from carmkin.qp.prepared import DEFAULT_RANDOM_SEEDS, PreparedIK
+from carmkin.qp.prepared import DEFAULT_RANDOM_SEEDS, PreparedIK, obstacle_list
 from carmkin.qp.redundant import (
     PREFERENCE_RATIO,
     Redundancy,
@@ -50,6 +50,7 @@ from carmkin.qp.results import (
 )
 from carmkin.qp.step import StepQP, build_step, solve_step
 from carmkin.qp.targets import AimTarget, AxisTarget, closed_form_pose, make_task
+from carmkin.robot import validity
 from carmkin.robot.collision import CollisionScene, Obstacle
 
 __all__ = [
@@ -127,8 +128,8 @@ def solve(
     given with ``q_current``, the single-axis closed form only seeds the QP, which starts from ``q_current``
     (least weighted motion). ``backend``: QP backend name (created once per prepared solver).
     """
-    if obstacles is None or isinstance(obstacles, (str, bytes, dict)):
-        raise QPIKError(f"obstacles must be a list of carmkin.robot.collision.Obstacle, got {obstacles!r}")
+    validity.require_system(system, QPIKError)
+    obstacles = obstacle_list(obstacles)
     redundancy = Redundancy(weights, prefer, free)
     search = SearchOptions(closed_form, qp, random_seeds, rng_seed)
     reusable = not obstacles and scene is None and (backend is None or isinstance(backend, str))

@@ -27,9 +27,9 @@ from carmkin.errors import CarmkinError, InvalidConfigurationError
 from carmkin.robot import validity
 from carmkin.robot.clearance import BOUND_SLACK, BoundedScene
 from carmkin.robot.collision import CollisionScene, Obstacle
-from carmkin.validation import JOINT_VALUE_LIMIT, real_array
+from carmkin.validation import JOINT_VALUE_LIMIT, real_array, real_scalar
 
-from .backends import make_backend
+from .backends import BACKENDS, make_backend
 from .loop import QPIK
 from .options import SOURCE_FRAME, QPIKError, QPIKOptions, SearchOptions
 from .redundant import Redundancy, joint_weights, locked_indices
@@ -41,6 +41,16 @@ from .tasks import pose_errors
 #: Random seeds tried after the deterministic ones when :class:`SearchOptions` names no count: none where the
 #: 6-DOF closed form gives every solution, a few on redundant chains (the QP is a local method).
 DEFAULT_RANDOM_SEEDS = {True: 0, False: 4}
+
+
+def obstacle_list(obstacles) -> tuple:
+    """``obstacles`` as a tuple of :class:`Obstacle`, or :class:`QPIKError` naming the argument."""
+    if obstacles is None or isinstance(obstacles, (str, bytes, dict)) or not hasattr(obstacles, "__iter__"):
+        raise QPIKError(f"obstacles must be a list of carmkin.robot.collision.Obstacle, got {obstacles!r}")
+    obstacles = tuple(obstacles)
+    if not all(isinstance(o, Obstacle) for o in obstacles):
+        raise QPIKError(f"obstacles must be a list of carmkin.robot.collision.Obstacle, got {obstacles!r}")
+    return obstacles
 
 
 def _default_accept(report) -> bool:
@@ -63,6 +73,7 @@ class PreparedIK:
                  backend=None, accept: Callable[[object], bool] | None = None,
                  redundancy: Redundancy = Redundancy(), search: SearchOptions = SearchOptions(),
                  scene: CollisionScene | None = None) -> None:
+        validity.require_system(system, QPIKError)
         for name, value, kind in (("options", options, QPIKOptions), ("redundancy", redundancy, Redundancy),
                                   ("search", search, SearchOptions)):
             if not isinstance(value, kind):
@@ -71,9 +82,10 @@ class PreparedIK:
             raise QPIKError(f"accept must be a function of the validity report, got {accept!r}")
         if scene is not None and not isinstance(scene, CollisionScene):
             raise QPIKError(f"scene must be a carmkin.robot.collision.CollisionScene, got {scene!r}")
-        if isinstance(obstacles, (str, bytes, dict)) or obstacles is None:
-            raise QPIKError(f"obstacles must be a list of carmkin.robot.collision.Obstacle, got {obstacles!r}")
-        obstacles = tuple(obstacles)
+        obstacles = obstacle_list(obstacles)
+        if not (backend is None or isinstance(backend, str) or callable(getattr(backend, "solve", None))):
+            raise QPIKError(f"backend must be a QP backend name ({', '.join(BACKENDS)}), a backend object or None, "
+                            f"got {backend!r}")
         if scene is not None and obstacles:
             raise QPIKError("give the obstacles either in the scene or as obstacles, not both")
         self._system = system
@@ -154,6 +166,8 @@ class PreparedIK:
         """
         qs = real_array(qs, "qs", (None, self.model.nq), error=InvalidConfigurationError, limit=JOINT_VALUE_LIMIT,
                         unit="m, rad")
+        if not (isinstance(exact_below, float) and exact_below == math.inf):  # inf (the default): exact everywhere
+            exact_below = real_scalar(exact_below, "exact_below", error=QPIKError, limit=None, unit="m")
         return self.bounded.min_distance(qs, exact_below)
 
     def reachable(self, qs) -> np.ndarray:
@@ -228,6 +242,10 @@ class PreparedIK:
             target, rows, correction = pose_rows(target, "target")
             kind = np.ndarray
         q_current, q_ref = self._reference(q_current)
+        if seeds is None or isinstance(seeds, (str, bytes, dict)) or not hasattr(seeds, "__len__"):
+            raise QPIKError(f"seeds must be a sequence of configurations ({self.model.nq},), got {seeds!r}")
+        if not isinstance(record, (bool, np.bool_)):
+            raise QPIKError(f"record must be True or False, got {record!r}")
         if len(seeds):
             seeds = [self._configuration(s, f"seeds[{k}]") for k, s in enumerate(seeds)]
         o, lower, upper = self.options, self.lower, self.upper

@@ -317,6 +317,14 @@ def test_result_contract():
     assert result.branches[0].status == "ok" and "out of range" in result.branches[1].status
 
 
+def is_rigid(T) -> bool:
+    try:
+        transforms.check_rigid_transform(np.asarray(T, dtype=float))
+        return True
+    except carmkin.InvalidPoseError:
+        return False
+
+
 # --- nearly rigid poses (rounded by a user, stored as float32): projected, the correction reported -----------
 @settings(max_examples=50)
 @given(configurations(), st.sampled_from(["round4", "float32"]))
@@ -324,6 +332,8 @@ def test_a_nearly_rigid_pose_is_projected_and_the_correction_reported(q, kind):
     T = PRESET.fk(q)
     rough = np.round(T, 4) if kind == "round4" else T.astype(np.float32)
     rigid, correction = nearest_rigid(np.asarray(rough, dtype=float))  # the independent route
+    if is_rigid(rough):  # rigid to RIGID_TOLERANCE already: taken as it is
+        rigid, correction = np.asarray(rough, dtype=float), 0.0
     for result in (analytic_ik.solve(PRESET, rough), analytic_ik.solve_batch(PRESET, np.asarray(rough)[None])):
         assert np.all(np.abs(np.atleast_1d(result.pose_correction) - correction) <= 1e-15)
         solutions = np.asarray(result.solutions).reshape(2, 6)
