@@ -186,16 +186,18 @@ def run_task(world: World, config: ExperimentConfig, rng: np.random.Generator, s
     markers = xray_markers(world, q_ref, rng)
     q = start_configuration(world, config, q_ref, rng)
     try:
-        T_ref_measured = world.measure(q_ref, rng)
+        reference = world.measure_estimate(q_ref, rng)  # the estimate: its covariance feeds the stop rule
+        T_ref_measured = reference.T
         model = model_from_pose(system, world.measure(q, rng), q)
-        guide = Guide(model, T_ref_measured, q, config.guidance)
+        guide = Guide(model, reference, q, config.guidance)
     except (GuidanceError, PoseError) as exc:
         return TaskResult(False, f"setup: {exc}", 0)
     result = TaskResult(False, f"not repositioned after {config.max_steps} guidance updates", 0)
     for _ in range(config.max_steps):
         try:
-            T_measured = world.measure(q, rng)
-            step = guide.step(T_measured, q_table=system.split(q)[1])  # a motorized table's encoders
+            estimate = world.measure_estimate(q, rng)
+            T_measured = estimate.T
+            step = guide.step(estimate, q_table=system.split(q)[1])  # a motorized table's encoders
         except (GuidanceError, PoseError) as exc:
             result.reason = f"step {result.steps}: {exc}"
             break
