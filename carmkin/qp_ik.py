@@ -79,6 +79,10 @@ def prepare(system, obstacles: Sequence[Obstacle] = (), options: QPIKOptions = Q
                       search=search, scene=scene)
 
 
+#: Prepared solvers :func:`solve` keeps per system (the most recently used option sets).
+PREPARED_PER_SYSTEM = 8
+
+
 @per_system
 def _prepared(system) -> dict:
     """Prepared solvers of ``system`` without obstacles, by their (hashable) options: what :func:`solve`
@@ -141,10 +145,13 @@ def solve(
             reusable = False
     if reusable:
         cache = _prepared(system)
-        solver = cache.get(key)
+        solver = cache.pop(key, None)
         if solver is None:
-            solver = cache[key] = prepare(system, options=options, backend=backend, accept=accept,
-                                          redundancy=redundancy, search=search).hold_weakly()
+            solver = prepare(system, options=options, backend=backend, accept=accept, redundancy=redundancy,
+                             search=search).hold_weakly()
+        cache[key] = solver  # most recently used last
+        while len(cache) > PREPARED_PER_SYSTEM:  # e.g. a new accept function at every call
+            cache.pop(next(iter(cache)))
     else:
         solver = prepare(system, obstacles, options, backend=backend, accept=accept, redundancy=redundancy,
                          search=search, scene=scene)

@@ -14,6 +14,7 @@ distances that decide. Lengths in metres, angles in radians, poses in the table 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import importlib
 import math
 import weakref
@@ -92,7 +93,6 @@ class PreparedIK:
         self.options, self.search, self.redundancy = options, search, redundancy
         self.model = model = system.pinocchio()[0]
         self.scene = scene if scene is not None else CollisionScene.from_system(system, obstacles)
-        self.bounded = BoundedScene(self.scene)
         self.accept = _default_accept if accept is None else accept
         self.lower, self.upper = np.array(model.lowerPositionLimit), np.array(model.upperPositionLimit)
         self._bounds = (system.lower.tolist(), system.upper.tolist())
@@ -114,6 +114,11 @@ class PreparedIK:
         for request in self._geometry.distanceRequests:
             request.enable_signed_distance = True
         self.margin = options.safety_margin
+
+    @functools.cached_property
+    def bounded(self) -> BoundedScene:
+        """The broad phase of the scene (:mod:`carmkin.robot.clearance`), built on first use."""
+        return BoundedScene(self.scene)
 
     @property
     def system(self):
