@@ -253,10 +253,13 @@ def clearance(system, n: int, rng) -> None:
         start = time.perf_counter()
         solver.clearance(qs, exact_below=solver.margin)
         t_margin = time.perf_counter() - start
+        start = time.perf_counter()
+        solver.reachable(qs)
+        t_reachable = time.perf_counter() - start
         print(f"clearance of {n} configurations, {label}, {len(scene)} pairs: coal on every pair {t_full:.3f} s; "
               f"PreparedIK.clearance {t_exact:.3f} s ({t_full / t_exact:.1f}x faster, largest difference "
               f"{np.abs(exact - full).max():.1e} m), exact below the margin only {t_margin:.3f} s "
-              f"({t_full / t_margin:.1f}x)")
+              f"({t_full / t_margin:.1f}x), PreparedIK.reachable {t_reachable:.3f} s ({t_full / t_reachable:.1f}x)")
 
 
 if __name__ == "__main__":

@@ -176,13 +176,19 @@ class PreparedIK:
         return self.bounded.min_distance(qs, exact_below)
 
     def reachable(self, qs) -> np.ndarray:
-        """(N,) bool: joints in range and every pair at least the margin apart, for ``qs`` (N, nq)."""
+        """(N,) bool: joints in range and every pair at least the margin apart, for ``qs`` (N, nq): the test of
+        :meth:`check` (one C++ collision pass at the margin per configuration, coal's distance for the flagged
+        pairs), without building reports."""
         qs = real_array(qs, "qs", (None, self.model.nq), error=InvalidConfigurationError, limit=JOINT_VALUE_LIMIT,
                         unit="m, rad")
-        in_range = validity.within_ranges(self.system, qs)
-        out = np.zeros(len(qs), dtype=bool)
-        if np.any(in_range):
-            out[in_range] = self.bounded.min_distance(qs[in_range], self.margin) >= self.margin
+        out = validity.within_ranges(self.system, qs)
+        if not self._pairs:
+            return out
+        model, data, geometry, pairs = self.model, self.data, self._geometry, self.scene.geometry_model
+        for i in np.flatnonzero(out).tolist():
+            if pin.computeCollisions(model, data, pairs, geometry, qs[i], False):
+                out[i] = all(pin.computeDistance(pairs, geometry, k).min_distance >= self.margin
+                              for k, r in enumerate(geometry.collisionResults) if r.isCollision())
         return out
 
     # --- solving ------------------------------------------------------------------------------------------
