@@ -32,7 +32,7 @@ from carmkin.qp.backends import (
 from carmkin.qp.limits import CollisionAvoidance, JointLimits
 from carmkin.qp.loop import QPIK
 from carmkin.qp.options import MARGIN_TOLERANCE, SOURCE_FRAME, QPIKError, QPIKOptions, SearchOptions
-from carmkin.qp.prepared import DEFAULT_RANDOM_SEEDS, PreparedIK
+from carmkin.qp.prepared import DEFAULT_RANDOM_SEEDS, PreparedIK, obstacle_list
 from carmkin.qp.redundant import (
     PREFERENCE_RATIO,
     Redundancy,
@@ -50,6 +50,7 @@ from carmkin.qp.results import (
 )
 from carmkin.qp.step import StepQP, build_step, solve_step
 from carmkin.qp.targets import AimTarget, AxisTarget, closed_form_pose, make_task
+from carmkin.robot import validity
 from carmkin.robot.collision import CollisionScene, Obstacle
 
 __all__ = [
@@ -76,6 +77,10 @@ def prepare(system, obstacles: Sequence[Obstacle] = (), options: QPIKOptions = Q
     """
     return PreparedIK(system, obstacles, options, backend=backend, accept=accept, redundancy=redundancy,
                       search=search, scene=scene)
+
+
+#: Prepared solvers :func:`solve` keeps per system (the most recently used option sets).
+PREPARED_PER_SYSTEM = 8
 
 
 @per_system
@@ -127,8 +132,8 @@ def solve(
     given with ``q_current``, the single-axis closed form only seeds the QP, which starts from ``q_current``
     (least weighted motion). ``backend``: QP backend name (created once per prepared solver).
     """
-    if obstacles is None or isinstance(obstacles, (str, bytes, dict)):
-        raise QPIKError(f"obstacles must be a list of carmkin.robot.collision.Obstacle, got {obstacles!r}")
+    validity.require_system(system, QPIKError)
+    obstacles = obstacle_list(obstacles)
     redundancy = Redundancy(weights, prefer, free)
     search = SearchOptions(closed_form, qp, random_seeds, rng_seed)
     reusable = not obstacles and scene is None and (backend is None or isinstance(backend, str))
@@ -140,10 +145,13 @@ def solve(
             reusable = False
     if reusable:
         cache = _prepared(system)
-        solver = cache.get(key)
+        solver = cache.pop(key, None)
         if solver is None:
-            solver = cache[key] = prepare(system, options=options, backend=backend, accept=accept,
-                                          redundancy=redundancy, search=search).hold_weakly()
+            solver = prepare(system, options=options, backend=backend, accept=accept, redundancy=redundancy,
+                             search=search).hold_weakly()
+        cache[key] = solver  # most recently used last
+        while len(cache) > PREPARED_PER_SYSTEM:  # e.g. a new accept function at every call
+            cache.pop(next(iter(cache)))
     else:
         solver = prepare(system, obstacles, options, backend=backend, accept=accept, redundancy=redundancy,
                          search=search, scene=scene)

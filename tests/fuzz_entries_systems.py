@@ -263,9 +263,4 @@ ENTRIES = {
 #: Entry points whose findings are in files other helpers own (reported in issue 19's work, fixed by the
 #: owner; a non-strict xfail in tests/test_fuzz.py until then).
 KNOWN = {
-    "analytic_ik.solve": "a junk system (None, str, bool, ...) raises AttributeError in carmkin/analytic_ik.py "
-                         "(owner: solver)",
-    "qp_ik.solve": "a junk system raises AttributeError in carmkin/qp_ik.py (owner: solver)",
-    "robot.validity.check": "a junk system raises AttributeError in carmkin/robot/validity.py (not in this wave's "
-                            "files: for the lead)",
 }

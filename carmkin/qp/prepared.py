@@ -14,6 +14,7 @@ distances that decide. Lengths in metres, angles in radians, poses in the table 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import importlib
 import math
 import weakref
@@ -27,9 +28,9 @@ from carmkin.errors import CarmkinError, InvalidConfigurationError
 from carmkin.robot import validity
 from carmkin.robot.clearance import BOUND_SLACK, BoundedScene
 from carmkin.robot.collision import CollisionScene, Obstacle
-from carmkin.validation import JOINT_VALUE_LIMIT, real_array
+from carmkin.validation import JOINT_VALUE_LIMIT, real_array, real_scalar
 
-from .backends import make_backend
+from .backends import BACKENDS, make_backend
 from .loop import QPIK
 from .options import SOURCE_FRAME, QPIKError, QPIKOptions, SearchOptions
 from .redundant import Redundancy, joint_weights, locked_indices
@@ -41,6 +42,16 @@ from .tasks import pose_errors
 #: Random seeds tried after the deterministic ones when :class:`SearchOptions` names no count: none where the
 #: 6-DOF closed form gives every solution, a few on redundant chains (the QP is a local method).
 DEFAULT_RANDOM_SEEDS = {True: 0, False: 4}
+
+
+def obstacle_list(obstacles) -> tuple:
+    """``obstacles`` as a tuple of :class:`Obstacle`, or :class:`QPIKError` naming the argument."""
+    if obstacles is None or isinstance(obstacles, (str, bytes, dict)) or not hasattr(obstacles, "__iter__"):
+        raise QPIKError(f"obstacles must be a list of carmkin.robot.collision.Obstacle, got {obstacles!r}")
+    obstacles = tuple(obstacles)
+    if not all(isinstance(o, Obstacle) for o in obstacles):
+        raise QPIKError(f"obstacles must be a list of carmkin.robot.collision.Obstacle, got {obstacles!r}")
+    return obstacles
 
 
 def _default_accept(report) -> bool:
@@ -63,6 +74,7 @@ class PreparedIK:
                  backend=None, accept: Callable[[object], bool] | None = None,
                  redundancy: Redundancy = Redundancy(), search: SearchOptions = SearchOptions(),
                  scene: CollisionScene | None = None) -> None:
+        validity.require_system(system, QPIKError)
         for name, value, kind in (("options", options, QPIKOptions), ("redundancy", redundancy, Redundancy),
                                   ("search", search, SearchOptions)):
             if not isinstance(value, kind):
@@ -71,16 +83,16 @@ class PreparedIK:
             raise QPIKError(f"accept must be a function of the validity report, got {accept!r}")
         if scene is not None and not isinstance(scene, CollisionScene):
             raise QPIKError(f"scene must be a carmkin.robot.collision.CollisionScene, got {scene!r}")
-        if isinstance(obstacles, (str, bytes, dict)) or obstacles is None:
-            raise QPIKError(f"obstacles must be a list of carmkin.robot.collision.Obstacle, got {obstacles!r}")
-        obstacles = tuple(obstacles)
+        obstacles = obstacle_list(obstacles)
+        if not (backend is None or isinstance(backend, str) or callable(getattr(backend, "solve", None))):
+            raise QPIKError(f"backend must be a QP backend name ({', '.join(BACKENDS)}), a backend object or None, "
+                            f"got {backend!r}")
         if scene is not None and obstacles:
             raise QPIKError("give the obstacles either in the scene or as obstacles, not both")
         self._system = system
         self.options, self.search, self.redundancy = options, search, redundancy
         self.model = model = system.pinocchio()[0]
         self.scene = scene if scene is not None else CollisionScene.from_system(system, obstacles)
-        self.bounded = BoundedScene(self.scene)
         self.accept = _default_accept if accept is None else accept
         self.lower, self.upper = np.array(model.lowerPositionLimit), np.array(model.upperPositionLimit)
         self._bounds = (system.lower.tolist(), system.upper.tolist())
@@ -102,6 +114,11 @@ class PreparedIK:
         for request in self._geometry.distanceRequests:
             request.enable_signed_distance = True
         self.margin = options.safety_margin
+
+    @functools.cached_property
+    def bounded(self) -> BoundedScene:
+        """The broad phase of the scene (:mod:`carmkin.robot.clearance`), built on first use."""
+        return BoundedScene(self.scene)
 
     @property
     def system(self):
@@ -154,16 +171,24 @@ class PreparedIK:
         """
         qs = real_array(qs, "qs", (None, self.model.nq), error=InvalidConfigurationError, limit=JOINT_VALUE_LIMIT,
                         unit="m, rad")
+        if not (isinstance(exact_below, float) and exact_below == math.inf):  # inf (the default): exact everywhere
+            exact_below = real_scalar(exact_below, "exact_below", error=QPIKError, limit=None, unit="m")
         return self.bounded.min_distance(qs, exact_below)
 
     def reachable(self, qs) -> np.ndarray:
-        """(N,) bool: joints in range and every pair at least the margin apart, for ``qs`` (N, nq)."""
+        """(N,) bool: joints in range and every pair at least the margin apart, for ``qs`` (N, nq): the test of
+        :meth:`check` (one C++ collision pass at the margin per configuration, coal's distance for the flagged
+        pairs), without building reports."""
         qs = real_array(qs, "qs", (None, self.model.nq), error=InvalidConfigurationError, limit=JOINT_VALUE_LIMIT,
                         unit="m, rad")
-        in_range = validity.within_ranges(self.system, qs)
-        out = np.zeros(len(qs), dtype=bool)
-        if np.any(in_range):
-            out[in_range] = self.bounded.min_distance(qs[in_range], self.margin) >= self.margin
+        out = validity.within_ranges(self.system, qs)
+        if not self._pairs:
+            return out
+        model, data, geometry, pairs = self.model, self.data, self._geometry, self.scene.geometry_model
+        for i in np.flatnonzero(out).tolist():
+            if pin.computeCollisions(model, data, pairs, geometry, qs[i], False):
+                out[i] = all(pin.computeDistance(pairs, geometry, k).min_distance >= self.margin
+                              for k, r in enumerate(geometry.collisionResults) if r.isCollision())
         return out
 
     # --- solving ------------------------------------------------------------------------------------------
@@ -228,6 +253,10 @@ class PreparedIK:
             target, rows, correction = pose_rows(target, "target")
             kind = np.ndarray
         q_current, q_ref = self._reference(q_current)
+        if seeds is None or isinstance(seeds, (str, bytes, dict)) or not hasattr(seeds, "__len__"):
+            raise QPIKError(f"seeds must be a sequence of configurations ({self.model.nq},), got {seeds!r}")
+        if not isinstance(record, (bool, np.bool_)):
+            raise QPIKError(f"record must be True or False, got {record!r}")
         if len(seeds):
             seeds = [self._configuration(s, f"seeds[{k}]") for k, s in enumerate(seeds)]
         o, lower, upper = self.options, self.lower, self.upper

@@ -32,7 +32,8 @@ class Redundancy:
         if self.prefer is not None and self.prefer not in ("table", "carm"):
             raise QPIKError(f"prefer must be 'table', 'carm' or None, got {self.prefer!r}")
         if self.free is not None:
-            if isinstance(self.free, (str, bytes)) or not all(isinstance(n, str) for n in self.free):
+            if (isinstance(self.free, (str, bytes, dict)) or not hasattr(self.free, "__iter__")
+                    or not all(isinstance(n, str) for n in self.free)):
                 raise QPIKError(f"free must be a sequence of joint names, got {self.free!r}")
             object.__setattr__(self, "free", tuple(self.free))
         if self.weights is not None and not isinstance(self.weights, dict):

@@ -130,6 +130,15 @@ class ValidityReport:
         return f"valid {at}" if self.valid else f"invalid {at}: " + "; ".join(self.reasons)
 
 
+def require_system(system, error=InvalidConfigurationError) -> None:
+    """``error`` naming the argument unless ``system`` is a :class:`carmkin.CArmSystem` (the one check of the
+    solvers' ``system`` argument: a junk value is refused before any attribute of it is read)."""
+    from carmkin.model.system import CArmSystem
+
+    if not isinstance(system, CArmSystem):
+        raise error(f"system must be a carmkin.CArmSystem (carmkin.load_preset(...)), got {type(system).__name__}")
+
+
 def pose_in_cone(system, T) -> bool:
     """Whether the principal axis of the source pose ``T`` (4, 4, frame 0), from the source centre to the
     detector plane, meets the table-top box. It depends on the pose alone, not on the joints reaching it."""
@@ -159,6 +168,7 @@ def check(
     :class:`~carmkin.robot.state.KinematicState` of ``q`` with that scene, when the caller has it already
     (one forward-kinematics pass per configuration).
     """
+    require_system(system)
     model = system.pinocchio()[0]
     q = real_array(q, "q", (model.nq,), error=InvalidConfigurationError, limit=JOINT_VALUE_LIMIT, unit="m, rad")
     margin = real_scalar(margin, "margin", error=InvalidConfigurationError, low=0.0, unit="m")

@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 from strategies import PRESET, configurations
 
 import carmkin
-from carmkin import qp_ik
+from carmkin import analytic_ik, qp_ik
 from carmkin.errors import CarmkinError, InvalidConfigurationError, InvalidPoseError, QPIKError
 from carmkin.robot import validity
 from carmkin.robot.clearance import BOUND_SLACK
@@ -108,14 +108,15 @@ def test_clearance_with_exact_below_is_a_cheap_margin_test():
 @settings(max_examples=20)
 @given(configurations(), st.sampled_from(["round4", "float32"]))
 def test_a_nearly_rigid_target_is_projected_and_reported(q, kind):
+    """The correction is the closed form's (tested there against nearest_rigid); the answer reaches the
+    projected pose."""
     T = PRESET.fk(q)
     rough = np.round(T, 4) if kind == "round4" else T.astype(np.float32)
-    rigid, correction = nearest_rigid(np.asarray(rough, dtype=float))
     result = qp_ik.solve(PRESET, rough)
-    assert abs(result.pose_correction - correction) <= 1e-15
+    assert result.pose_correction == analytic_ik.solve(PRESET, rough).pose_correction
+    rigid = nearest_rigid(np.asarray(rough, dtype=float))[0] if result.pose_correction else np.asarray(rough, float)
     if result.success:
-        position, angle = pose_error(PRESET.fk(result.q), rigid)
-        assert position <= 1e-6 and angle <= 1e-6
+        assert max(pose_error(PRESET.fk(result.q), rigid)) <= 1e-6
 
 
 def test_a_target_far_from_rigid_names_nearest_rigid():
@@ -149,6 +150,31 @@ def test_junk_targets_are_typed_errors(target):
 def test_junk_options_are_typed_errors(kwargs):
     with pytest.raises(CarmkinError):
         qp_ik.solve(PRESET, PRESET.fk(np.zeros(6)), **kwargs)
+
+
+JUNK = [None, {"a": 1}, "x", b"x", 1j, True, [1, "a"], np.array([1j] * 3), [[1, 2], [3]]]
+
+
+@pytest.mark.parametrize("junk", JUNK)
+def test_junk_everywhere_is_a_typed_error_naming_the_argument(junk):
+    """Each public argument of qp_ik/prepared given junk: a CarmkinError, never a numpy or Python one."""
+    T = PRESET.fk(np.zeros(6))
+    solver = SOLVERS["preset"]
+    calls = [
+        (lambda: qp_ik.AxisTarget(junk, (0, 0, 1)), "position"), (lambda: qp_ik.AxisTarget((0, 0, 0), junk), "direction"),
+        (lambda: qp_ik.AimTarget(junk, (0.5, 0.7)), "point"), (lambda: qp_ik.AimTarget((0, 0, 0), junk), "distance_range"),
+        (lambda: solver.clearance(np.zeros((1, 6)), junk), "exact_below"), (lambda: solver.check(junk), "q"),
+        (lambda: solver.clearance(junk), "qs"), (lambda: solver.reachable(junk), "qs"),
+        (lambda: Obstacle.box("b", junk), "size"), (lambda: Obstacle.box("b", (1, 1, 1), junk), "center"),
+    ]
+    if junk is not None:
+        calls += [(lambda: qp_ik.solve(PRESET, T, backend=junk), "backend"),
+                  (lambda: qp_ik.solve(PRESET, T, free=junk), "free")]
+    if junk is not None and not isinstance(junk, list):
+        calls.append((lambda: qp_ik.solve(PRESET, T, seeds=junk), "seeds"))
+    for call, name in calls:
+        with pytest.raises(CarmkinError, match=name):
+            call()
 
 
 def test_junk_option_fields_are_typed_errors():
