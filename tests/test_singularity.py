@@ -180,7 +180,8 @@ def test_distance_is_the_joint_move_that_reaches_the_set(system, data):
         for sign in (-1, 1):
             moved = q.copy()
             moved[joint] += sign * d[case]
-            hits.append(abs(np.linalg.det(pinocchio_jacobian(system, moved))))
+            with np.errstate(divide="ignore", invalid="ignore"):  # LAPACK meets an exact zero pivot on the set
+                hits.append(abs(np.linalg.det(pinocchio_jacobian(system, moved))))
         assert min(hits) <= 1e-9
 
 
