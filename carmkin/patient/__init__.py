@@ -1,0 +1,8 @@
+"""The patient in the world: a parametric body from height and mass, or a body from a CT.
+
+Either becomes obstacles of the collision scene (:meth:`obstacles`), placed by DICOM Patient Position.
+"""
+
+from .body import ParametricPatient
+
+__all__ = ["ParametricPatient"]
