@@ -21,7 +21,9 @@ LAYERS = (
     ("carmkin.robot",),
     ("carmkin.analytic", "carmkin.analytic_ik"),
     ("carmkin.qp", "carmkin.qp_ik", "carmkin.singularity"),
-    ("carmkin.studies", "carmkin.imaging", "carmkin.reposition", "carmkin.interop", "carmkin.plots"),
+    ("carmkin.studies", "carmkin.imaging", "carmkin.reposition", "carmkin.interop", "carmkin.plots",
+     "carmkin.patient"),
+    ("carmkin.views",),
     ("carmkin.viz",),
     ("carmkin.commands", "carmkin.cli"),
 )

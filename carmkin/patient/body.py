@@ -176,8 +176,11 @@ class ParametricPatient:
                 corners = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)]) * half + s.a
                 points.append(corners)
             else:
-                for end in (s.a, s.b):
-                    points.append(np.asarray(end) + s.radius * np.vstack((np.eye(3), -np.eye(3))))
+                a, b = np.asarray(s.a), np.asarray(s.b)
+                axis = (b - a) / max(np.linalg.norm(b - a), 1e-12)
+                inset = min(s.radius, 0.5 * np.linalg.norm(b - a))
+                for end in (a + inset * axis, b - inset * axis):  # the cylinder's ends, then ± r
+                    points.append(end + s.radius * np.vstack((np.eye(3), -np.eye(3))))
         P = np.vstack(points)
         return P @ T[:3, :3].T + T[:3, 3]
 

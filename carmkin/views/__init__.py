@@ -4,8 +4,8 @@
 view), :func:`reach_map` (which XA views are reachable and clear) and the named standard views.
 """
 
-from .maps import ReachMap, reach_map
+from .maps import ReachMap, carm_alone, reach_map
 from .plan import DEFAULT_MARGIN, Move, ViewPlan, plan_view
 from .view import View
 
-__all__ = ["DEFAULT_MARGIN", "Move", "ReachMap", "View", "ViewPlan", "plan_view", "reach_map"]
+__all__ = ["DEFAULT_MARGIN", "Move", "ReachMap", "View", "carm_alone", "ViewPlan", "plan_view", "reach_map"]

@@ -47,22 +47,55 @@ class World:
         self.first = np.array([p.first for p in pairs], dtype=int)
         self.second = np.array([p.second for p in pairs], dtype=int)
         self.pair_radius = self.radii[self.first] + self.radii[self.second]
-        self.joints_used = np.unique(self.parent)
+        self.joints_used = [(j, np.flatnonzero(self.parent == j)) for j in np.unique(self.parent).tolist()]
+        # Pairs against a body fixed to the table frame get the exact distance from the moving sphere's centre
+        # to that body as their bound (a 2 m table top's own sphere would bound nothing): boxes one by one,
+        # capsules and spheres all at once as segments.
+        self._boxes, seg_pairs, seg = [], [], []
+        for g in np.unique(self.second).tolist():
+            o = objects[g]
+            if o.parentJoint != 0:
+                continue
+            ks = np.flatnonzero(self.second == g)
+            kind = type(o.geometry).__name__
+            if kind == "Box":
+                self._boxes.append((o, ks))
+            elif kind in ("Capsule", "Sphere"):
+                half = o.geometry.halfLength if kind == "Capsule" else 0.0
+                axis = o.placement.rotation[:, 2] * half
+                for k in ks.tolist():
+                    seg_pairs.append(k)
+                    seg.append((o.placement.translation - axis, 2 * axis, o.geometry.radius))
+        self._seg_pairs = np.array(seg_pairs, dtype=int)
+        self._seg_a = np.array([a for a, _, _ in seg]).reshape(-1, 3)
+        self._seg_v = np.array([v for _, v, _ in seg]).reshape(-1, 3)
+        self._seg_vv = np.maximum(np.einsum("ij,ij->i", self._seg_v, self._seg_v), 1e-300)
+        self._seg_r = np.array([r for _, _, r in seg])
         self._beam_parts = self._beam_spheres(objects)
         names = {o.name for o in self.obstacles}
         self._environment = [o for o in objects if o.name in names or link_of(o.name) == "table"]
 
     # --- exact clearance ---------------------------------------------------------------------------------
-    def clearance(self, q) -> tuple[float, int]:
-        """``(distance, pair index)``: the exact smallest signed distance (m) over the scene's pairs at q."""
+    def clearance(self, q, stop_below: float = -np.inf) -> tuple[float, int]:
+        """``(distance, pair index)``: the exact smallest signed distance (m) over the scene's pairs at q; with
+        ``stop_below``, the first pair found closer than it ends the search (a distance below it, not the
+        smallest)."""
         pin.forwardKinematics(self.model, self.data, np.asarray(q, dtype=float))
         pin.updateGeometryPlacements(self.model, self.data, self.scene.geometry_model, self.scene.geometry_data)
         world = np.empty_like(self.centres)
-        for j in self.joints_used.tolist():
+        for j, sel in self.joints_used:
             M = self.data.oMi[j]
-            sel = self.parent == j
             world[sel] = self.centres[sel] @ M.rotation.T + M.translation
         bound = np.linalg.norm(world[self.first] - world[self.second], axis=1) - self.pair_radius
+        for obj, ks in self._boxes:
+            first = self.first[ks]
+            bound[ks] = _point_distance(obj, world[first]) - self.radii[first]
+        if len(self._seg_pairs):
+            first = self.first[self._seg_pairs]
+            w = world[first] - self._seg_a
+            t = np.clip(np.einsum("ij,ij->i", w, self._seg_v) / self._seg_vv, 0.0, 1.0)
+            bound[self._seg_pairs] = (np.linalg.norm(w - t[:, None] * self._seg_v, axis=1) - self._seg_r
+                                      - self.radii[first])
         order = np.argsort(bound)
         best, which = np.inf, -1
         gm, gd = self.scene.geometry_model, self.scene.geometry_data
@@ -72,6 +105,8 @@ class World:
             d = pin.computeDistance(gm, gd, k).min_distance
             if d < best:
                 best, which = d, k
+                if best < stop_below:
+                    break
         return float(best), which
 
     def pair_names(self, k: int) -> tuple[str, str]:
@@ -119,11 +154,11 @@ def _point_distance(obj, points: np.ndarray) -> np.ndarray:
     kind = type(g).__name__
     if kind == "Box":
         q = np.abs(local) - np.asarray(g.halfSide)
-        outside = np.linalg.norm(np.maximum(q, 0.0), axis=1)
+        outside = np.sqrt(np.sum(np.maximum(q, 0.0) ** 2, axis=1))
         return outside + np.minimum(np.max(q, axis=1), 0.0)
     if kind == "Capsule":
-        z = np.clip(local[:, 2], -g.halfLength, g.halfLength)
-        return np.linalg.norm(local - np.column_stack((0 * z, 0 * z, z)), axis=1) - g.radius
+        local[:, 2] -= np.clip(local[:, 2], -g.halfLength, g.halfLength)
+        return np.sqrt(np.sum(local ** 2, axis=1)) - g.radius
     if kind == "Sphere":
         return np.linalg.norm(local, axis=1) - g.radius
     g.computeLocalAABB()

@@ -78,3 +78,13 @@ def reach_map(system, target, primary_deg=np.arange(-90, 91), secondary_deg=np.a
     return ReachMap(p, s, target, directions.reshape(shape + (3,)), out.reachable.reshape(shape),
                     out.q.reshape(shape + (system.nq,)), out.clearance.reshape(shape), out.distance.reshape(shape),
                     out.binding.reshape(shape), out.reason.reshape(shape))
+
+
+def carm_alone(system):
+    """``system`` with the table translation held at 0 (range [0, 0]): the 5-DOF C-arm of §4.6.1 beside a
+    fixed table, as a system of the same joints."""
+    import dataclasses
+
+    from carmkin.model.params import JointRange
+
+    return system.replace(table=dataclasses.replace(system.table, translation=JointRange(0.0, 0.0, "table_translation")))

@@ -30,7 +30,7 @@ DISTANCE_SAMPLES = 9
 #: Clearances within this (m) rank as equal; the least motion decides between them.
 CLEARANCE_BIN = 0.01
 #: Exact checks per cell before it is declared unreachable by contact.
-MAX_EXACT_CHECKS = 24
+MAX_EXACT_CHECKS = 64
 
 
 @dataclass
@@ -76,11 +76,19 @@ def _frame(system, q_hold) -> np.ndarray:
     return system.table_motion(q_table) @ system.carm_base_pose
 
 
+def _lambda_at(fam, idx, s):
+    """λ (M,) of the families ``idx`` where the distance is ``s`` (M,), kept in their intervals."""
+    base, slope = fam.base[idx][:, 0], fam.slope[idx][:, 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lam = np.where(np.abs(slope) > closed_form.DEGENERATE, (s - base) / slope, 0.5 * (fam.lo[idx] + fam.hi[idx]))
+    return np.clip(lam, fam.lo[idx], fam.hi[idx])
+
+
 def solve_cells(ctx: Context, targets, directions, distance_range) -> Outcome:
     """Search N cells: targets/directions (N, 3) in the table frame, distance_range (N, 2) (m)."""
     system, world = ctx.system, ctx.world
     N = len(targets)
-    span = np.where(system.prismatic, 1.0, 1.0) * np.maximum(system.upper - system.lower, 1e-9)
+    span = np.maximum(system.upper - system.lower, 1e-9)
     cand = []  # (cell, score, motion, q)
     s_grid = distance_range[:, :1] + (distance_range[:, 1:] - distance_range[:, :1]) * np.linspace(0, 1, DISTANCE_SAMPLES)
     sources = targets[:, None, :] - s_grid[..., None] * directions[:, None, :]
@@ -108,14 +116,15 @@ def solve_cells(ctx: Context, targets, directions, distance_range) -> Outcome:
         if not has.all():
             miss = ~has
             score[miss] = world.beam_bound(targets[n[miss]] - s_star[miss, None] * directions[n[miss]], directions[n[miss]])
-        slope_s = fam.slope[idx][:, 0]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            lam = np.where(np.abs(slope_s) > closed_form.DEGENERATE, (s_star - fam.base[idx][:, 0]) / slope_s,
-                           0.5 * (fam.lo[idx] + fam.hi[idx]))
-        lam = np.clip(lam, fam.lo[idx], fam.hi[idx])
-        q = closed_form.joints(system, fam, idx, lam, hold)
-        motion = np.sum(np.abs(q - ctx.q_ref) / span, axis=1)
-        cand.append((n, score, motion, q))
+        # Distance choices per family: the best-scored one and the ends and middle of its interval (the
+        # bound ranks loosely: the candidates are tried round-robin over these choices).
+        for kind, s_try in enumerate((s_star, s_lo, s_hi, 0.5 * (s_lo + s_hi))):
+            if kind:
+                score = world.beam_bound(targets[n] - s_try[:, None] * directions[n], directions[n])
+            lam = _lambda_at(fam, idx, s_try)
+            q = closed_form.joints(system, fam, idx, lam, hold)
+            motion = np.sum(np.abs(q - ctx.q_ref) / span, axis=1)
+            cand.append((n, score, motion, q, np.full(len(n), kind)))
     reachable = np.zeros(N, dtype=bool)
     q_out = np.full((N, system.nq), np.nan)
     clearance = np.full(N, np.nan)
@@ -128,7 +137,15 @@ def solve_cells(ctx: Context, targets, directions, distance_range) -> Outcome:
         score = np.concatenate([c[1] for c in cand])
         motion = np.concatenate([c[2] for c in cand])
         q = np.concatenate([c[3] for c in cand])
-        order = np.lexsort((motion, -np.floor(score / CLEARANCE_BIN), n))
+        kind = np.concatenate([c[4] for c in cand])
+        order = np.lexsort((motion, -np.floor(score / CLEARANCE_BIN), kind, n))
+        n, q, kind = n[order], q[order], kind[order]
+        # Round-robin over the distance choices: the k-th best of each choice before the (k+1)-th of any.
+        rank = np.zeros(len(n), dtype=int)
+        group = np.flatnonzero(np.r_[True, (n[1:] != n[:-1]) | (kind[1:] != kind[:-1])])
+        sizes = np.diff(np.r_[group, len(n)])
+        rank = np.arange(len(n)) - np.repeat(group, sizes)
+        order = np.lexsort((kind, rank, n))
         n, q = n[order], q[order]
         starts = np.flatnonzero(np.r_[True, n[1:] != n[:-1]])
         ends = np.r_[starts[1:], len(n)]
@@ -136,7 +153,7 @@ def solve_cells(ctx: Context, targets, directions, distance_range) -> Outcome:
             cell = int(n[a])
             closest = (np.inf, -1)
             for k in range(a, min(b, a + MAX_EXACT_CHECKS)):
-                d, pair = world.clearance(q[k])
+                d, pair = world.clearance(q[k], stop_below=ctx.margin)
                 if d >= ctx.margin:
                     reachable[cell], q_out[cell], clearance[cell] = True, q[k], d
                     T = system.fk(q[k])
