@@ -49,7 +49,20 @@ _LAZY_SUBMODULES = {"model", "robot", "analytic_ik", "analytic", "qp_ik", "qp", 
                     "imaging", "plots", "reposition", "transforms", "viz", "patient", "views"}
 
 
+def _version() -> str:
+    """The installed distribution's version (pyproject.toml's ``version``), read from the package metadata."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("carmkin")
+    except PackageNotFoundError:  # a source tree on sys.path that was never installed
+        return "0+unknown"
+
+
 def __getattr__(name: str):
+    if name == "__version__":  # computed on first use: importing carmkin stays light
+        globals()["__version__"] = _version()
+        return globals()["__version__"]
     if name in _LAZY_SUBMODULES:
         import importlib
 

@@ -19,6 +19,7 @@ import os
 import pkgutil
 import sys
 
+from carmkin import _version
 from carmkin.errors import CarmkinError
 
 from . import commands
@@ -52,6 +53,7 @@ def build_parser() -> argparse.ArgumentParser:
         "Lengths on the command line are in mm, angles in degrees.",
         epilog="exit codes: 0 ok, 1 a check failed, 2 usage error or unusable input, 3 internal error",
     )
+    parser.add_argument("--version", action="version", version=f"carmkin {_version()}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=OneLineParser)
     for name, module in _command_modules():
         command = sub.add_parser(name, help=module.HELP, description=module.__doc__,

@@ -40,6 +40,21 @@ class InvalidPoseError(CarmkinError):
     """A pose is not a 4x4 rigid transform (wrong shape, NaN/Inf, not orthonormal, det != 1)."""
 
 
+# --- carmkin.extras ------------------------------------------------------------------------------
+
+
+class MissingExtraError(CarmkinError):
+    """An optional dependency (an extra: OpenCV, pydicom, torch/nanodrr/nibabel, ...) is not installed.
+
+    The message names the missing module and the pip command that installs the extra. Attributes:
+    ``module`` (the import name), ``extra`` (the name in ``carmkin[...]``).
+    """
+
+    def __init__(self, message: str, module: str = "", extra: str = "") -> None:
+        super().__init__(message)
+        self.module, self.extra = module, extra
+
+
 # --- carmkin.robot.collision ---------------------------------------------------------------------
 
 
@@ -193,6 +208,15 @@ class SimulatorConventionError(CarmkinError):
 
 class DicomGeometryError(CarmkinError):
     """A DICOM geometry value is out of range or a dataset lacks what a conversion needs."""
+
+
+class DicomAttributeError(DicomGeometryError):
+    """A dataset's attribute is missing, empty, of the wrong type, not finite or outside the standard's range:
+    the message names the attribute's keyword and tag (``keyword`` and ``tag`` hold them)."""
+
+    def __init__(self, message: str, keyword: str = "", tag: str = ""):
+        super().__init__(message)
+        self.keyword, self.tag = keyword, tag
 
 
 # --- carmkin.interop.drr -------------------------------------------------------------------------

@@ -85,7 +85,7 @@ def workspace_excess(result, path=None, joints: Sequence[str] = ("wigwag", "hori
     :class:`~carmkin.studies.workspace.StudyResult`, with the dissertation's means and K as red crosses."""
     from carmkin.studies.workspace import DISSERTATION_TABLE_4_5, UNITS, translation_key
 
-    fig = _figure((5.5 * len(joints), 6.5))
+    fig = _figure((5.5 * len(joints), 6.5), layout="constrained")
     axes = fig.subplots(2, len(joints), sharex=True, squeeze=False)
     d0 = np.array([r.translation * 1e3 for r in result.results])
     for col, joint in enumerate(joints):
@@ -109,14 +109,13 @@ def workspace_excess(result, path=None, joints: Sequence[str] = ("wigwag", "hori
         axes[1, col].set_ylabel("K (poses out of range)")
         axes[1, col].set_xlabel("table translation d0 (mm)")
     fig.suptitle(f"5-DOF IK of 6-DOF poses, {result.system} (§4.6.1, Table 4.5)")
-    fig.tight_layout()
     return _save(fig, path, dpi=120)
 
 
 def table_reach(results, labels: dict[str, str], path=None) -> Figure:
     """Bar chart of the reachable fraction per table model (:class:`~carmkin.studies.table_workspace.ModelReach`
     results; ``labels``: model -> display name)."""
-    fig = _figure((7, 3.6))
+    fig = _figure((7, 3.6), layout="constrained")
     ax = fig.subplots()
     fractions = [100 * r.fraction for r in results]
     ax.bar([labels[r.model].replace(" (", "\n(").replace(", ", ",\n", 1) for r in results], fractions,
@@ -127,7 +126,6 @@ def table_reach(results, labels: dict[str, str], path=None) -> Figure:
     ax.set_ylabel("desired poses reachable (%)")
     ax.tick_params(axis="x", labelsize=7)
     ax.set_title(f"Reach by table DOFs ({len(results[0].reached)} poses)")
-    fig.tight_layout()
     return _save(fig, path)
 
 
@@ -147,20 +145,21 @@ def panorama_validity_map(planner, us, vs, categories: np.ndarray, labels: Seque
     from carmkin.imaging.camera import image_border
 
     colors = list(VALIDITY_COLORS)
-    fig = _figure((7, 5))
+    fig = _figure((8, 5), layout="constrained")
     ax = fig.subplots()
     du, dv = (us[1] - us[0]) if len(us) > 1 else 1.0, (vs[1] - vs[0]) if len(vs) > 1 else 1.0
     ax.imshow(categories, cmap=ListedColormap(colors), vmin=-0.5, vmax=len(labels) - 0.5, origin="upper",
               extent=(us[0] - du / 2, us[-1] + du / 2, vs[-1] + dv / 2, vs[0] - dv / 2), interpolation="nearest")
     border = image_border(*planner.size)
     ax.plot(border[:, 0], border[:, 1], "b-", lw=1.5, label="reference image")
-    for shot in shots:
-        ax.plot(shot.outline[:, 0], shot.outline[:, 1], "w--", lw=1)
-        ax.plot(*shot.principal_point, "w+")
+    for k, shot in enumerate(shots):
+        ax.plot(shot.outline[:, 0], shot.outline[:, 1], "w--", lw=1, label="planned shot: border" if k == 0 else None)
+        ax.plot(*shot.principal_point, "w+", label="planned shot: principal point" if k == 0 else None)
     ax.set_xlabel("u (px, panorama frame)")
     ax.set_ylabel("v (px)")
     ax.set_title("validity of principal points (§4.4.3)")
-    ax.legend(handles=[Patch(color=c, label=n) for c, n in zip(colors, labels)], loc="upper left",
-              bbox_to_anchor=(1.01, 1.0), fontsize=7)
+    lines, _ = ax.get_legend_handles_labels()
+    fig.legend(handles=[Patch(color=c, label=n) for c, n in zip(colors, labels)] + lines, loc="outside right upper",
+               fontsize=7, facecolor="0.75", title="colour: validity (§4.4.3)", title_fontsize=7)
     ax.set_aspect("equal")
-    return _save(fig, path, dpi=110, bbox_inches="tight")
+    return _save(fig, path, dpi=110)

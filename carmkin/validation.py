@@ -205,7 +205,8 @@ def projection_matrix(value, name: str = "P", *, error: type[CarmkinError] = Inv
     ``error``. In the normalised P, ``P[2] @ (X, 1)`` is the depth (in world units) of a world point X.
     """
     P = real_array(value, name, (3, 4), error=error, limit=None)
-    scale = float(np.linalg.norm(P[2, :3]))
+    big = float(np.abs(P[2, :3]).max())  # the norm taken after dividing by the largest entry: no overflow
+    scale = big * float(np.linalg.norm(P[2, :3] / big)) if big > 0.0 else 0.0
     if not np.isfinite(scale) or scale == 0.0:
         raise error(f"{name} must be a projection matrix with a non-zero third row, got P[2, :3] = {P[2, :3]}")
     with np.errstate(all="ignore"):
@@ -265,4 +266,18 @@ def joint_index(value, name: str, nq: int, *, names: Sequence[str] | None = None
         raise error(f"{name} must be {choices}, got {value!r}")
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or not 0 <= value < nq:
         raise error(f"{name} must be {choices}, got {_describe(value)}")
+    return int(value)
+
+
+def integer(value, name: str, *, low: int | None = None, high: int | None = None,
+            error: type[CarmkinError] = InvalidParameterError, unit: str = "") -> int:
+    """``value`` as a Python int within [``low``, ``high``] (a count, a size in pixels, a seed), or ``error``.
+
+    An ``int`` or numpy integer only: no bool, no float (``2.0`` is refused, never truncated), no string.
+    """
+    unit_text = f" {unit}" if unit else ""
+    bounds = f" in [{'-inf' if low is None else low}, {'inf' if high is None else high}]{unit_text}"
+    if (isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer))
+            or (low is not None and value < low) or (high is not None and value > high)):
+        raise error(f"{name} must be an integer{bounds}, got {_describe(value)}")
     return int(value)

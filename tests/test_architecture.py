@@ -16,7 +16,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 #: Layers in data-flow order; a module may import from its layer and the ones before it.
 LAYERS = (
-    ("carmkin.errors", "carmkin.validation", "carmkin.transforms"),
+    ("carmkin.errors", "carmkin.validation", "carmkin.extras", "carmkin.transforms"),
     ("carmkin.model", "carmkin.presets"),
     ("carmkin.robot",),
     ("carmkin.analytic", "carmkin.analytic_ik"),

@@ -1,5 +1,11 @@
 """The README's tour does what its text says: its Python blocks run, and the values its comments print are
-the values the code produces. The ```console blocks of the README and docs/*.md print what they show.
+the values the code produces. Every ```python block of the README and docs/ runs as written, and every
+``tests/...`` path the docs name exists. The ```console blocks of the README and docs/*.md print what they show.
+
+The convention for Python blocks: the blocks of one page run in order in one namespace (a later block may use
+what an earlier one defined, as in a notebook), in a fresh folder, with matplotlib's non-interactive backend.
+A block that cannot run as written (it needs a browser, a GPU, minutes) starts with the line
+``# not run by the tests: <why>``: the page shows the reason and the test skips that block with it.
 
 The convention for numbers quoted in the docs: a fenced block ```console whose first line is ``$ carmkin ...``
 (a fast, deterministic command, a few seconds at most), followed by what the command prints, stdout and
@@ -19,7 +25,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-README = Path(__file__).resolve().parents[1] / "README.md"
+ROOT = Path(__file__).resolve().parents[1]
+README = ROOT / "README.md"
+#: Every page of the documentation: the README and docs/ (new pages are picked up by this glob).
+PAGES = sorted([README, *(ROOT / "docs").rglob("*.md")])
+#: First line of a ```python block the tests do not run, followed by the reason (shown in the page).
+NOT_RUN = "# not run by the tests:"
 
 
 def python_blocks(text: str) -> list[str]:
@@ -51,8 +62,75 @@ def test_the_tour_solve_succeeds_and_reaches_the_target():
     assert np.allclose(system.fk(res.q), T, atol=1e-9)
 
 
+# --- every python block of every page runs -----------------------------------------------------------------
+def page_blocks(path: Path) -> list[tuple[int, str]]:
+    """``(line, source)`` of each ```python block of ``path``."""
+    text = path.read_text()
+    return [(text.count("\n", 0, m.start()) + 2, m.group(1))
+            for m in re.finditer(r"^```python\n(.*?)^```", text, flags=re.S | re.M)]
+
+
+PAGES_WITH_CODE = [p for p in PAGES if page_blocks(p)]
+
+
+def not_run_reason(source: str) -> str | None:
+    first = source.lstrip().splitlines()[0] if source.strip() else ""
+    return first[len(NOT_RUN):].strip() if first.startswith(NOT_RUN) else None
+
+
+@pytest.mark.parametrize("path", PAGES_WITH_CODE, ids=lambda p: str(p.relative_to(ROOT)))
+def test_every_python_block_runs_as_written(path, tmp_path, monkeypatch):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    monkeypatch.chdir(tmp_path)
+    namespace: dict = {"__name__": "__docs__"}
+    skipped = []
+    for line, source in page_blocks(path):
+        reason = not_run_reason(source)
+        if reason is not None:
+            assert reason, f"{path.name}:{line}: say why the block is not run"
+            skipped.append(f"{path.name}:{line}: {reason}")
+            continue
+        with contextlib.redirect_stdout(io.StringIO()):
+            exec(compile(source, f"{path.relative_to(ROOT)}:{line}", "exec"), namespace)  # noqa: S102 - our docs
+        plt.close("all")
+    if skipped:
+        pytest.skip("; ".join(skipped))
+
+
+def test_blocks_that_are_not_run_say_why():
+    marked = [(p.name, line, not_run_reason(s))
+              for p in PAGES for line, s in page_blocks(p) if not_run_reason(s) is not None]
+    assert all(reason for _, _, reason in marked), marked
+
+
+def test_the_docs_pages_have_python_blocks():
+    assert sum(len(page_blocks(p)) for p in PAGES) >= 12
+
+
+# --- every tests/ path the docs name exists -----------------------------------------------------------------
+TEST_REFERENCE = re.compile(r"\btests/[\w/.-]*\w(?:/|::\w+)?")
+
+
+def test_every_test_path_in_the_docs_exists():
+    stale = []
+    for path in PAGES:
+        for number, line in enumerate(path.read_text().splitlines(), 1):
+            for ref in TEST_REFERENCE.findall(line):
+                file, _, name = ref.partition("::")
+                target = ROOT / file
+                if not target.exists():
+                    stale.append(f"{path.relative_to(ROOT)}:{number}: {file} does not exist")
+                elif name and not re.search(rf"^\s*(?:async\s+)?(?:def|class)\s+{name}\b", target.read_text(), re.M):
+                    stale.append(f"{path.relative_to(ROOT)}:{number}: {file} has no {name}")
+    assert not stale, "\n".join(stale)
+
+
 # --- console blocks: the numbers the docs quote are the numbers the commands print ---------------------------
-DOCS = sorted([README, *(README.parent / "docs").glob("*.md")])
+DOCS = PAGES
 #: A line of a console block ending with this marker may print other numbers (timings, rounding noise): each
 #: number in it stands for any number; its words must still match.
 VARIES = "# varies"

@@ -66,6 +66,34 @@ def require_six_joints(system: CArmSystem, command: str, alternative: str) -> No
 
 
 # --- joint vectors --------------------------------------------------------------------------------------
+#: The one option name for a joint vector (the configuration a command works at) on every command.
+JOINTS_FLAG = "--q-mm-deg"
+
+
+class _RenamedOption(argparse.Action):
+    """An option's former name, hidden from ``--help`` and kept for one release: stores its value where the
+    new name does and says so in one line on stderr."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(f"note: {option_string} is now called {JOINTS_FLAG}; the old name will be removed in the next release",
+              file=sys.stderr)
+        setattr(namespace, self.dest, values)
+
+
+def add_joints_argument(parser: argparse.ArgumentParser, what: str = "configuration",
+                        default: str = "prismatic joints mid-range, revolute 0°",
+                        old_names: tuple[str, ...] = ()) -> None:
+    """Add :data:`JOINTS_FLAG` (``args.q_mm_deg``, text; read it with :func:`parse_joints`): one value per joint
+    of the preset, mm for prismatic and degrees for revolute joints. ``old_names``: hidden aliases the command
+    used before (a note on stderr when used)."""
+    parser.add_argument(JOINTS_FLAG, dest="q_mm_deg", metavar=JOINTS_METAVAR,
+                        help=f"{what}: one value per joint of the preset, mm for prismatic and degrees for revolute "
+                        f"joints, comma-separated (write {JOINTS_FLAG}=-5,... when the first is negative; default: "
+                        f"{default})")
+    for old in old_names:
+        parser.add_argument(old, dest="q_mm_deg", metavar=JOINTS_METAVAR, action=_RenamedOption, help=argparse.SUPPRESS)
+
+
 def joint_units(system: CArmSystem) -> tuple[str, ...]:
     """``"mm"`` for each prismatic joint, ``"deg"`` for each revolute one, in the order of q."""
     return tuple("mm" if p else "deg" for p in system.prismatic)
@@ -278,17 +306,20 @@ def _unit(unit: str) -> str:
 
 # --- output files ---------------------------------------------------------------------------------------
 def output_path(path: str, option: str, suffixes: tuple[str, ...] | None = None) -> Path:
-    """``path`` ready to be written: its folder created if missing; :class:`UsageError` naming ``option`` if
-    the suffix is not one of ``suffixes`` or the folder cannot be made."""
+    """``path`` ready to be written: its folder created if missing, with one line on stderr that says so;
+    :class:`UsageError` naming ``option`` if the suffix is not one of ``suffixes`` or the folder cannot be made."""
     target = Path(path)
     if suffixes is not None and target.suffix.lower().lstrip(".") not in suffixes:
         raise UsageError(f"{option} {path}: the file extension must be one of {', '.join('.' + s for s in suffixes)}")
     if target.is_dir():
         raise UsageError(f"{option} {path}: is a folder, expected a file name")
+    if target.parent.is_dir():
+        return target
     try:
-        target.parent.mkdir(parents=True, exist_ok=True)
+        target.parent.mkdir(parents=True)
     except OSError as exc:
         raise UsageError(f"{option} {path}: cannot create the folder {str(target.parent)!r} ({exc.strerror})") from None
+    print(f"note: {option}: created the folder {str(target.parent)!r}", file=sys.stderr)
     return target
 
 

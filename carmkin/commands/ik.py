@@ -9,7 +9,7 @@ The pose is the X-ray source frame (origin at the source centre, Z = principal a
                           is nearly rigid (typed with 4 decimals, stored in float32) is projected onto
                           the nearest rigid transform with a one-line note on stderr, one farther than
                           ||R^T R - I|| = 1e-3 is refused
---current (one value per joint, mm for prismatic and degrees for revolute joints) is the current
+--q-mm-deg (one value per joint, mm for prismatic and degrees for revolute joints) is the current
 configuration used to choose between the two solutions (§4.4.2; default: zero configuration). Prints both
 solutions in mm/degrees with their status and their §4.4.3 validity (collisions, table in the cone), and
 the chosen one (--json for machines). The closed form is the paper's 6-joint chain: on a preset with a
@@ -25,8 +25,9 @@ import argparse
 import json
 
 from ._common import (
-    JOINTS_METAVAR,
+    JOINTS_FLAG,
     MM_PER_M,
+    add_joints_argument,
     add_preset_argument,
     format_joints,
     joint_units,
@@ -49,8 +50,8 @@ def register(parser: argparse.ArgumentParser) -> None:
     pose.add_argument("--pose", metavar="X,Y,Z,RX,RY,RZ",
                       help="source position (mm) and rotation vector (deg) in the table frame")
     pose.add_argument("--pose-file", metavar="FILE", help="pose as JSON or a 4x4 text matrix (see above)")
-    parser.add_argument("--current", metavar=JOINTS_METAVAR,
-                        help="current joints (mm, deg) for the choice between the solutions (default: zero)")
+    add_joints_argument(parser, "the current configuration, for the choice between the solutions", "zero",
+                        old_names=("--current",))
     parser.add_argument("--json", action="store_true",
                         help="print JSON (joints in mm and degrees; residual in m and rad)")
 
@@ -96,7 +97,7 @@ def run(args: argparse.Namespace) -> int:
         T = pose_from_mm_deg(values[:3], values[3:])
     else:
         T = read_pose(args.pose_file, "--pose-file")
-    q_current = None if args.current is None else parse_joints(args.current, system, "--current")
+    q_current = None if args.q_mm_deg is None else parse_joints(args.q_mm_deg, system, JOINTS_FLAG)
     result = solve(system, T, q_current)
     branches = [_branch_dict(system, s, b) for s, b in zip(result.solutions, result.branches)]
     if args.json:

@@ -2,7 +2,7 @@
 
 The panorama frame is the image of the reference X-ray pose: by default every joint at the middle of its
 range (Siremobile preset: wigwag/angular/orbital 0°, table translation 0, vertical 200 mm, horizontal
-100 mm); give another with --reference-q-mm-deg. Pixel coordinates (u, v) are in that frame.
+100 mm); give another with --q-mm-deg. Pixel coordinates (u, v) are in that frame.
 
   carmkin panorama shot --principal-point 600,300     plan one shot: pose, joints, moves, validity
   carmkin panorama plan --length-mm 400 --overlap 0   shots covering a length on the object plane
@@ -12,7 +12,7 @@ range (Siremobile preset: wigwag/angular/orbital 0°, table translation 0, verti
 shot and plan take --html FILE: a self-contained viewer page (open it in a browser) with the C-arm at the
 reference configuration, a cone at every shot's target pose, and the last valid shot as a ghost.
 
-Joint values (--reference-q-mm-deg: one per joint of the preset) and moves print in mm for prismatic
+Joint values (--q-mm-deg: one per joint of the preset) and moves print in mm for prismatic
 joints and degrees for revolute joints. Δd0 is the C-arm's motion
 relative to the table along Z0: the table itself moves by −Δd0.
 """
@@ -25,9 +25,10 @@ import math
 import numpy as np
 
 from ._common import (
-    JOINTS_METAVAR,
+    JOINTS_FLAG,
     MM_PER_M,
     UsageError,
+    add_joints_argument,
     add_preset_argument,
     format_joints,
     integer,
@@ -44,8 +45,8 @@ HELP = "plan parallax-free panoramas: one shot, a sequence, the validity map, th
 
 def _add_common(parser: argparse.ArgumentParser) -> None:
     add_preset_argument(parser)
-    parser.add_argument("--reference-q-mm-deg", metavar=JOINTS_METAVAR,
-                        help="configuration of the reference image (mm / deg; default: mid-range joints)")
+    add_joints_argument(parser, "configuration of the reference image", "mid-range joints",
+                        old_names=("--reference-q-mm-deg",))
     parser.add_argument("--margin-mm", type=number(0.0, unit="mm"), default=0.0,
                         help="collision margin of the validity check (default 0: only intersections)")
     parser.add_argument("--no-fallback", action="store_true", help="do not try the QP IK when no "
@@ -114,8 +115,8 @@ def _planner(system, args):
     from carmkin.imaging import panorama as pano
 
     q = None
-    if args.reference_q_mm_deg is not None:
-        q = parse_joints(args.reference_q_mm_deg, system, "--reference-q-mm-deg")
+    if args.q_mm_deg is not None:
+        q = parse_joints(args.q_mm_deg, system, JOINTS_FLAG)
     return pano.PanoramaPlanner(system, q_reference=q, fallback=not args.no_fallback,
                                 margin=args.margin_mm / MM_PER_M)
 

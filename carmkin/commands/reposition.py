@@ -20,7 +20,8 @@ from __future__ import annotations
 
 import argparse
 import math
-import sys
+
+from carmkin.extras import require
 
 from ._common import add_preset_argument, integer, number, system_from_args
 
@@ -177,10 +178,5 @@ def _calibration(args) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    try:
-        import cv2  # noqa: F401  (checked here so a missing extra is a message, not a traceback)
-    except ImportError:
-        print("carmkin reposition: error: OpenCV is missing; install it with pip install 'carmkin[reposition]'",
-              file=sys.stderr)
-        return 2
+    require("cv2", "reposition")  # checked here: a missing extra is a one-line usage error (exit 2)
     return {"simulate": _simulate, "experiment": _experiment, "calibration": _calibration}[args.reposition_command](args)

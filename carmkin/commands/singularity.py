@@ -18,8 +18,9 @@ import math
 import numpy as np
 
 from ._common import (
-    JOINTS_METAVAR,
+    JOINTS_FLAG,
     UsageError,
+    add_joints_argument,
     add_preset_argument,
     format_joints,
     integer,
@@ -37,9 +38,7 @@ MEASURES_HELP = "det, manipulability, inverse-condition or sigma-min"
 
 def register(parser: argparse.ArgumentParser) -> None:
     add_preset_argument(parser)
-    parser.add_argument("--q-mm-deg", metavar=JOINTS_METAVAR,
-                        help="configuration, mm for d0 d1 d3 and deg for θ2 θ4 θ5 "
-                        "(default: revolute 0°, prismatic mid-range)")
+    add_joints_argument(parser)
     parser.add_argument("--plot", metavar="OUT.png",
                         help="write the two singularity maps to this image (PNG, PDF, SVG...)")
     parser.add_argument("--pair", default="angular,orbital",
@@ -66,7 +65,7 @@ def configuration(system, text: str | None) -> np.ndarray:
     if text is None:
         mid = (system.lower + system.upper) / 2
         return np.where(system.prismatic, mid, 0.0)
-    return parse_joints(text, system, "--q-mm-deg")
+    return parse_joints(text, system, JOINTS_FLAG)
 
 
 def pair_of(text: str) -> tuple[int, int]:

@@ -26,8 +26,10 @@ import threading
 from pathlib import Path
 
 from ._common import (
+    JOINTS_FLAG,
     JOINTS_METAVAR,
     MM_PER_M,
+    add_joints_argument,
     add_preset_argument,
     integer,
     number,
@@ -42,8 +44,7 @@ HELP = "show the C-arm + table in the browser (meshcat on 127.0.0.1, or --html F
 
 def register(parser: argparse.ArgumentParser) -> None:
     add_preset_argument(parser)
-    parser.add_argument("--q", metavar=JOINTS_METAVAR,
-                        help="configuration to show, mm/deg per joint (default: middle of the ranges)")
+    add_joints_argument(parser, "configuration to show", "middle of the ranges", old_names=("--q",))
     parser.add_argument("--target", metavar=JOINTS_METAVAR,
                         help="target configuration: drawn as a ghost, move animated")
     parser.add_argument("--target-pose", metavar="FILE",
@@ -116,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
     from carmkin.viz import CArmViewer
 
     system = system_from_args(args)
-    q = parse_joints(args.q, system, "--q") if args.q else None  # every input checked before any work
+    q = parse_joints(args.q_mm_deg, system, JOINTS_FLAG) if args.q_mm_deg else None  # every input checked before any work
     q_target = parse_joints(args.target, system, "--target") if args.target else None
     T_target = read_pose(args.target_pose, "--target-pose") if args.target_pose else None
     if args.html:

@@ -27,13 +27,13 @@ from scipy.optimize import brentq
 
 from carmkin import imaging
 from carmkin.errors import (
-    InvalidConfigurationError,
     PanoramaError,  # noqa: F401 (defined there, raised here)
 )
 from carmkin.model.bounds import MAX_LENGTH
+from carmkin.model.kinematics import check_configuration
 from carmkin.robot.collision import CollisionScene, Obstacle
 from carmkin.transforms import check_rigid_transform, pose_error, segment_box_interval
-from carmkin.validation import real_scalar
+from carmkin.validation import MAGNITUDE_LIMIT, real_array, real_scalar, rotation
 
 #: Map categories, in the order of the colours of :func:`plot_validity_map`.
 CATEGORIES = ("valid", "joint out of range", "collision", "table not in cone", "no IK solution")
@@ -41,6 +41,35 @@ CATEGORIES = ("valid", "joint out of range", "collision", "table not in cone", "
 
 #: Most shots one plan may hold: bounds the cost of a call (a femur needs three to five, a 2 m table a dozen).
 MAX_SHOTS = 100
+#: Largest number of principal points of one validity map (a 300 x 300 grid): bounds the cost of a call.
+MAX_MAP_POINTS = 90_000
+#: Tolerance on ``|‖direction‖ − 1|`` and on its component along the reference principal axis.
+DIRECTION_TOLERANCE = 1e-9
+
+
+def _configuration(system, q, name: str) -> np.ndarray:
+    q = check_configuration(q, system.nq, name)
+    if q.ndim != 1:
+        raise PanoramaError(f"{name} must be one configuration ({system.nq},), got shape {q.shape}")
+    return q
+
+
+def _flag(value, name: str) -> bool:
+    if not isinstance(value, (bool, np.bool_)):
+        raise PanoramaError(f"{name} must be True or False, got {value!r}")
+    return bool(value)
+
+
+def _pixel(value, name: str = "principal point") -> np.ndarray:
+    return real_array(value, f"{name} (u, v)", (2,), error=PanoramaError, unit="px")
+
+
+def _direction(value) -> np.ndarray:
+    d = real_array(value, "direction", (3,), error=PanoramaError)
+    if abs(d[2]) > DIRECTION_TOLERANCE or abs(np.linalg.norm(d) - 1) > DIRECTION_TOLERANCE:
+        raise PanoramaError(f"direction must be a unit (3,) vector ⟂ to the reference principal axis (to "
+                            f"{DIRECTION_TOLERANCE:g}), got {d}")
+    return d
 
 
 def reference_configuration(system) -> np.ndarray:
@@ -89,7 +118,7 @@ class Shot:
 
 def pose_residual(T, T_target) -> float:
     """max(position error (m), rotation angle (rad)) between two poses (:func:`carmkin.transforms.pose_error`)."""
-    return max(pose_error(T, T_target))
+    return max(pose_error(check_rigid_transform(T, "T"), check_rigid_transform(T_target, "T_target")))
 
 
 def _category(report) -> str:
@@ -117,25 +146,25 @@ class PanoramaPlanner:
     def __init__(self, system, q_reference=None, P_ref=None, obstacles: Sequence[Obstacle] = (),
                  fallback: bool = True, margin: float = 0.0) -> None:
         self.system = system
-        q = reference_configuration(system) if q_reference is None else np.asarray(q_reference, dtype=float)
-        if q.shape != (system.nq,) or not np.all(np.isfinite(q)):
-            raise InvalidConfigurationError(f"q_reference must be finite with shape ({system.nq},), got {q.shape}")
+        q = reference_configuration(system) if q_reference is None else _configuration(system, q_reference,
+                                                                                        "q_reference")
         self.q_reference = q
         self.P_ref = system.fk(q) if P_ref is None else check_rigid_transform(P_ref, "P_ref")
         self.K = system.carm.intrinsics()
         self.K_inv = np.linalg.inv(self.K)
         self.size = (system.carm.detector_columns, system.carm.detector_rows)
+        if isinstance(obstacles, (str, bytes)) or not hasattr(obstacles, "__iter__") or not all(
+                isinstance(o, Obstacle) for o in obstacles):
+            raise PanoramaError(f"obstacles must be a sequence of carmkin.robot.collision.Obstacle, got {obstacles!r}")
         self.obstacles = tuple(obstacles)
         self.scene = CollisionScene.from_system(system, self.obstacles)
-        self.fallback = fallback
-        self.margin = margin
+        self.fallback = _flag(fallback, "fallback")
+        self.margin = real_scalar(margin, "margin", error=PanoramaError, low=0.0, high=MAX_LENGTH, unit="m")
 
     # --- one shot (Table 4.3) ---------------------------------------------------------------------------
     def rotation_for(self, principal_point) -> tuple[np.ndarray, np.ndarray]:
         """``(V_p, R)``: unit principal axis K⁻¹p (reference source frame) and the minimal rotation e_z → V_p."""
-        p = np.asarray(principal_point, dtype=float)
-        if p.shape != (2,) or not np.all(np.isfinite(p)):
-            raise PanoramaError(f"principal point must be two finite pixel coordinates (u, v), got {p!r}")
+        p = _pixel(principal_point)
         V = self.K_inv @ np.array([p[0], p[1], 1.0])
         V /= np.linalg.norm(V)
         return V, imaging.rotation_between((0.0, 0.0, 1.0), V)
@@ -143,7 +172,7 @@ class PanoramaPlanner:
     def target_pose(self, R) -> np.ndarray:
         """Eq. 4.19: ``P_ref · [R 0; 0 1]`` (4, 4), the source pose in the table frame."""
         M = np.eye(4)
-        M[:3, :3] = R
+        M[:3, :3] = rotation(R, "R", error=PanoramaError)
         return self.P_ref @ M
 
     def _solve(self, T, q_current, fallback: bool):
@@ -171,21 +200,22 @@ class PanoramaPlanner:
         ``q_current`` (nq,): configuration the moves start from (default: the reference configuration);
         ``fallback``: try the QP IK when no closed-form branch is valid (default: the planner's setting).
         """
-        q_current = self.q_reference if q_current is None else np.asarray(q_current, dtype=float)
+        q_current = self.q_reference if q_current is None else _configuration(self.system, q_current, "q_current")
         V, R = self.rotation_for(principal_point)
         H = imaging.rotation_homography(self.K, R)
         T = self.target_pose(R)
-        fallback = self.fallback if fallback is None else fallback
+        fallback = self.fallback if fallback is None else _flag(fallback, "fallback")
         q, path, report, ik, reasons = self._solve(T, q_current, fallback)
         category = _category(report)
         valid = category == "valid"
         residual = pose_residual(self.system.fk(q), T) if np.all(np.isfinite(q)) else float("inf")
         outline = self.outline(H)
-        return Shot(np.asarray(principal_point, dtype=float), V, R, H, T, q, path, valid,
+        return Shot(_pixel(principal_point), V, R, H, T, q, path, valid,
                     () if valid else reasons, category, q - q_current, outline, residual, report, ik)
 
     def outline(self, H, per_edge: int = 16) -> np.ndarray:
         """Border of an image mapped into the panorama by ``H`` (px); NaN where it leaves the half-space."""
+        H = real_array(H, "H", (3, 3), error=PanoramaError)
         border = imaging.homogeneous(imaging.image_border(*self.size, per_edge))
         m = border @ H.T
         out = np.full((len(m), 2), np.nan)
@@ -204,9 +234,13 @@ class PanoramaPlanner:
 
     def direction_from_pixels(self, du: float, dv: float) -> np.ndarray:
         """Unit direction (3,) on a plane ⟂ to the reference axis from a panorama direction (du, dv) px."""
+        du = real_scalar(du, "du", error=PanoramaError, limit=MAGNITUDE_LIMIT, unit="px")
+        dv = real_scalar(dv, "dv", error=PanoramaError, limit=MAGNITUDE_LIMIT, unit="px")
         d = np.array([du / self.K[0, 0], dv / self.K[1, 1], 0.0])
-        if not np.all(np.isfinite(d)) or np.linalg.norm(d) < 1e-15:
+        big = np.abs(d).max()
+        if big == 0.0:  # scaled by the largest component first: no underflow to a zero "unit" vector
             raise PanoramaError(f"direction must be a non-zero (du, dv), got {(du, dv)}")
+        d = d / big
         return d / np.linalg.norm(d)
 
     def default_object_distance(self) -> float:
@@ -224,6 +258,11 @@ class PanoramaPlanner:
     def extent(self, s: float, direction, distance: float) -> tuple[float, float]:
         """Interval of the line ``X(σ) = distance·e_z + σ·direction`` (reference frame, m) that the shot
         aimed at ``X(s)`` sees on its detector: ``(σ_lo, σ_hi)`` (m)."""
+        s = real_scalar(s, "s", error=PanoramaError, high=MAX_LENGTH, low=-MAX_LENGTH, unit="m")
+        direction = _direction(direction)
+        distance = real_scalar(distance, "distance", error=PanoramaError, low=0.0, high=MAX_LENGTH, unit="m")
+        if distance == 0.0:
+            raise PanoramaError("object distance must be > 0 (m), got 0")
         c = np.array([0.0, 0.0, distance])
         _, R = self.rotation_for((self.K @ (c + s * direction))[:2] / (c + s * direction)[2])
         a, b = self.K @ R.T @ c, self.K @ R.T @ direction
@@ -258,9 +297,7 @@ class PanoramaPlanner:
         overlap = real_scalar(overlap, "overlap", error=PanoramaError, low=0.0, high=1.0)
         if length == 0.0 or overlap == 1.0:
             raise PanoramaError(f"length must be > 0 m and overlap < 1, got {length:g} m and {overlap:g}")
-        direction = self.default_direction() if direction is None else np.asarray(direction, dtype=float)
-        if direction.shape != (3,) or abs(direction[2]) > 1e-12 or abs(np.linalg.norm(direction) - 1) > 1e-9:
-            raise PanoramaError("direction must be a unit (3,) vector ⟂ to the reference principal axis")
+        direction = self.default_direction() if direction is None else _direction(direction)
         distance = self.default_object_distance() if distance is None else real_scalar(
             distance, "distance", error=PanoramaError, low=0.0, high=MAX_LENGTH, unit="m")
         if distance == 0.0:
@@ -290,7 +327,11 @@ class PanoramaPlanner:
 
     def principal_point_of(self, s: float, direction, distance: float) -> np.ndarray:
         """Panorama pixel (2,) of the aim point ``distance·e_z + s·direction`` (reference frame)."""
-        X = np.array([0.0, 0.0, distance]) + s * np.asarray(direction)
+        s = real_scalar(s, "s", error=PanoramaError, high=MAX_LENGTH, low=-MAX_LENGTH, unit="m")
+        distance = real_scalar(distance, "distance", error=PanoramaError, low=0.0, high=MAX_LENGTH, unit="m")
+        if distance == 0.0:
+            raise PanoramaError("object distance must be > 0 (m), got 0")
+        X = np.array([0.0, 0.0, distance]) + s * _direction(direction)
         m = self.K @ X
         return m[:2] / m[2]
 
@@ -313,6 +354,11 @@ class PanoramaPlanner:
         Starts every shot from the reference configuration; by default without the QP fallback (which
         cannot change a 6-DOF pose's two branches and costs ~30 ms per invalid point).
         """
+        us = real_array(us, "us", (None,), error=PanoramaError, unit="px")
+        vs = real_array(vs, "vs", (None,), error=PanoramaError, unit="px")
+        if len(us) * len(vs) > MAX_MAP_POINTS:
+            raise PanoramaError(f"a validity map holds at most {MAX_MAP_POINTS} points, got {len(us)} x {len(vs)}")
+        fallback = _flag(fallback, "fallback")
         out = np.empty((len(vs), len(us)), dtype=int)
         for i, v in enumerate(vs):
             for j, u in enumerate(us):

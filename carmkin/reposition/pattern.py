@@ -24,6 +24,7 @@ import numpy as np
 from carmkin.errors import (
     PatternError,  # noqa: F401 (defined there, raised here)
 )
+from carmkin.extras import require
 from carmkin.transforms import check_rigid_transform
 
 #: Square size and gap of the seed's pattern (Fig. 3.2 caption), m.
@@ -68,7 +69,7 @@ class MarkerBoard:
     @cached_property
     def cv2_board(self):
         """The :class:`cv2.aruco.GridBoard` (OpenCV imported here, on first use)."""
-        import cv2
+        cv2 = require("cv2", "reposition")
 
         try:
             dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, self.dictionary))

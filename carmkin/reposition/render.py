@@ -14,6 +14,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from carmkin.extras import require
 from carmkin.transforms import check_rigid_transform, inverse
 
 from .camera import CameraError, check_image_size, check_intrinsics
@@ -53,7 +54,7 @@ def render(board: MarkerBoard, K, image_size, T_marker_camera, blur_px: float = 
     ``image_size`` = (columns, rows) px; ``blur_px``: σ of the Gaussian blur (px, 0 = none);
     ``noise_gray``: σ of the additive noise (gray levels, 0 = none; needs ``rng``).
     """
-    import cv2
+    cv2 = require("cv2", "reposition")
 
     columns, rows = check_image_size(image_size)
     for name, value in (("blur_px", blur_px), ("noise_gray", noise_gray)):

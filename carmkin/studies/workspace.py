@@ -95,12 +95,14 @@ class TranslationResult:
     """Results for one table translation.
 
     Attributes:
-        translation: d0 (m). joints: :class:`JointExcess` per joint name. poses: number of poses.
+        translation: d0 (m).
+        joints: :class:`JointExcess` per joint name.
+        poses: number of poses.
         reachable_5dof: poses whose selected 5-DOF solution has all joints in range.
         reachable_6dof: poses the 6-DOF model reaches with all joints (with d0) in range
             (:func:`six_dof_reachable`).
-        unsolved: poses with no FK-verified 5-DOF branch. max_residual: worst FK residual of the chosen
-        branches (m / unit-vector norm).
+        unsolved: poses with no FK-verified 5-DOF branch.
+        max_residual: worst FK residual of the chosen branches (m / unit-vector norm).
     """
 
     translation: float

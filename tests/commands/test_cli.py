@@ -86,7 +86,7 @@ def in_range(draw, system) -> np.ndarray:
 def test_view_writes_a_page_on_both_presets(name, tmp_path, capsys):
     system = PRESETS[name]
     out = tmp_path / "new" / "v.html"  # the folder does not exist yet
-    code, text, err = cli(["view", "--preset", system.name, f"--q={cli_values(system, mid(system))}",
+    code, text, err = cli(["view", "--preset", system.name, f"--q-mm-deg={cli_values(system, mid(system))}",
                            f"--target={cli_values(system, system.lower)}", "--frames", "3", "--html", out], capsys)
     assert code == 0, err
     assert out.stat().st_size > 100_000 and "closest to table_0" in text
@@ -174,9 +174,9 @@ def test_a_value_on_a_limit_is_in_range():
 
 def test_out_of_range_configuration_is_refused_by_every_command_that_takes_one(tmp_path, capsys):
     bad = "0,500,0,100,0,0"  # vertical 500 mm > 400 mm
-    for argv in (["view", "--q", bad, "--html", tmp_path / "unused.html"], ["singularity", "--q-mm-deg", bad],
-                 ["panorama", "shot", "--principal-point", "400,300", "--reference-q-mm-deg", bad],
-                 ["ik", "--pose=0,0,500,0,0,0", "--current", bad]):
+    for argv in (["view", "--q-mm-deg", bad, "--html", tmp_path / "unused.html"], ["singularity", "--q-mm-deg", bad],
+                 ["panorama", "shot", "--principal-point", "400,300", "--q-mm-deg", bad],
+                 ["ik", "--pose=0,0,500,0,0,0", "--q-mm-deg", bad], ["project", "--q-mm-deg", bad]):
         code, _, err = cli(argv, capsys)
         assert code == 2
         assert_one_line_error(err, "vertical = 500 mm", "[0, 400] mm")

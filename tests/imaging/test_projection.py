@@ -118,9 +118,10 @@ def test_patient_code_uses_the_table_origin():
 
 
 @pytest.mark.parametrize("bad, match", [
-    (np.zeros((3, 4)), "singular"),
-    (np.ones((3, 3)), "3x4"),
-    (np.full((3, 4), np.nan), "3x4"),
+    (np.zeros((3, 4)), "non-zero third row"),
+    (np.hstack((np.ones((3, 3)), np.ones((3, 1)))), "rank 3"),
+    (np.ones((3, 3)), "shape"),
+    (np.full((3, 4), np.nan), "finite"),
 ])
 def test_bad_projection_matrices_raise(bad, match):
     with pytest.raises(imaging.ImagingError, match=match):
@@ -132,3 +133,40 @@ def test_bad_patient_position_raises():
         imaging.patient_pose("supine")
     with pytest.raises(imaging.ImagingError, match="origin"):
         imaging.patient_pose("HFS", origin=(0, 0))
+
+
+# --- issue 19: the projection boundary ------------------------------------------------------------------
+def test_projection_from_pose_refuses_a_zero_K():
+    # before: P = 0 came back
+    with pytest.raises(imaging.ImagingError, match="shape"):
+        imaging.projection_from_pose(0, np.eye(4))
+    with pytest.raises(imaging.ImagingError, match="K\\[2, 2\\] = 1"):
+        imaging.projection_from_pose(np.zeros((3, 3)), np.eye(4))
+    with pytest.raises(imaging.ImagingError, match="focal"):
+        imaging.projection_from_pose(np.diag([0.0, 0.0, 1.0]), np.eye(4))
+    with pytest.raises(imaging.ImagingError, match="K\\[2, 2\\] = 1"):
+        imaging.projection_from_pose(5.0 * PRESET.carm.intrinsics(), np.eye(4))
+
+
+def test_pose_from_projection_refuses_strings_and_complex():
+    P = imaging.projection_matrix(PRESET, 0.5 * (PRESET.lower + PRESET.upper))
+    with pytest.raises(imaging.ImagingError):
+        imaging.pose_from_projection(P.astype(str))  # before: parsed
+    with pytest.raises(imaging.ImagingError, match="complex"):
+        imaging.pose_from_projection(P + 1e-3j)  # before: the imaginary part was dropped
+
+
+@pytest.mark.parametrize("entry", [(0, 0), (0, 3), (1, 2), (2, 3), (2, 0)])
+@pytest.mark.parametrize("huge", [1e150, -1e200, 1e300])
+def test_pose_from_projection_huge_entry_is_refused_or_right(entry, huge):
+    # before: NaN intrinsics for a finite P with one huge entry
+    P = imaging.projection_matrix(PRESET, 0.5 * (PRESET.lower + PRESET.upper))
+    P[entry] = huge
+    try:
+        K, T = imaging.pose_from_projection(P)
+    except imaging.ImagingError:
+        return
+    assert np.all(np.isfinite(K)) and np.all(np.isfinite(T))
+    again = imaging.projection_from_pose(K, T)
+    scale = P[2, :3] @ again[2, :3] / (again[2, :3] @ again[2, :3])
+    assert np.allclose(scale * again, P, rtol=1e-9, atol=1e-9 * np.abs(P).max())

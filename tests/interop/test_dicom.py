@@ -57,30 +57,61 @@ def test_table_angle_signs_follow_ps3_3():
 
 
 angles = st.tuples(st.floats(-179.9, 179.9, **finite), st.floats(-89.9, 89.9, **finite), st.floats(-179.9, 179.9, **finite))
+CONVENTIONS = sorted(dicom.CONVENTIONS)
 
 
-@given(angles)
-def test_positioner_and_table_angles_round_trip(a):
-    for forward, backward in ((dicom.positioner_matrix, dicom.positioner_angles), (dicom.table_matrix, dicom.table_angles)):
+@pytest.mark.parametrize("convention", CONVENTIONS)
+@given(a=angles)
+def test_positioner_and_table_angles_round_trip(convention, a):
+    positioner = (lambda *x: dicom.positioner_matrix(*x, convention=convention),
+                  lambda M: dicom.positioner_angles(M, convention=convention))
+    for forward, backward in (positioner, (dicom.table_matrix, dicom.table_angles)):
         M = forward(*a)
         assert np.allclose(M @ M.T, np.eye(3), atol=1e-12) and np.isclose(np.linalg.det(M), 1.0)
         assert max(angle_difference(x, y) for x, y in zip(backward(M), a)) <= ROUND_TRIP
 
 
-@given(rotations())
-def test_any_rotation_has_positioner_and_table_angles(R):
+@pytest.mark.parametrize("convention", CONVENTIONS)
+@given(R=rotations())
+def test_any_rotation_has_positioner_and_table_angles(convention, R):
     assume(abs(R[1, 2]) < 1 - 1e-6 and abs(R[2, 1]) < 1 - 1e-6)
-    assert np.abs(dicom.positioner_matrix(*dicom.positioner_angles(R)) - R).max() <= ROUND_TRIP
+    again = dicom.positioner_matrix(*dicom.positioner_angles(R, convention=convention), convention=convention)
+    assert np.abs(again - R).max() <= ROUND_TRIP
     assert np.abs(dicom.table_matrix(*dicom.table_angles(R)) - R).max() <= ROUND_TRIP
 
 
+@given(a=angles)
+def test_the_conventions_differ_only_in_the_signs_of_ap2_and_ap3(a):
+    """``literal`` is ``beam`` with Ap2 and Ap3 negated, and Ap1 is the same in both (an independent route:
+    the matrices themselves)."""
+    assert np.abs(dicom.positioner_matrix(a[0], -a[1], -a[2]) - dicom.positioner_matrix(*a, convention="literal")).max() <= 1e-15
+    beam, literal = (dicom.positioner_angles(dicom.positioner_matrix(*a), convention=c) for c in ("beam", "literal"))
+    assert angle_difference(beam[0], literal[0]) <= ROUND_TRIP
+    assert abs(beam[1] + literal[1]) <= ROUND_TRIP and angle_difference(beam[2], -literal[2]) <= ROUND_TRIP
+
+
+def test_each_convention_says_what_it_reads():
+    """The words of docs/interop.md, checked on the vectors: ``beam`` — Ap2 > 0 tilts the detector (−Yp) to +Z
+    and Ap3 > 0 turns Xp, Zp clockwise as seen from behind the detector looking towards the source (right-handed
+    about +Yp); ``literal`` — Ap2 > 0 tilts the source (+Yp) to +Z, Ap3 > 0 clockwise as seen from the source."""
+    for convention, sign in (("beam", 1.0), ("literal", -1.0)):
+        M = dicom.positioner_matrix(0.0, 30.0, 0.0, convention=convention)
+        assert -M[1] @ [0, 0, 1] == pytest.approx(sign * 0.5)  # detector direction's Z component
+        Zp0 = dicom.positioner_matrix(20.0, 10.0, 0.0, convention=convention)[2]
+        M = dicom.positioner_matrix(20.0, 10.0, 15.0, convention=convention)
+        turn = np.cross(Zp0, M[2]) @ M[1]  # > 0: right-handed about +Yp, i.e. clockwise looking along +Yp
+        assert np.sign(turn) == sign and abs(turn) == pytest.approx(math.sin(math.radians(15.0)))
+
+
 # --- one image: Isocenter Reference System ----------------------------------------------------------------
-@given(st.data())
-def test_isocenter_reference_system_round_trip(data):
+@pytest.mark.parametrize("convention", CONVENTIONS)
+@given(data=st.data())
+def test_isocenter_reference_system_round_trip(convention, data):
     system = data.draw(systems())
     q = data.draw(configurations(system, beyond=0.3))
     iso = data.draw(st.floats(0.2, 1.2, **finite))
-    geometry = dicom.isocenter_geometry(system, q, iso)
+    geometry = dicom.isocenter_geometry(system, q, iso, convention=convention)
+    assert geometry.convention == convention
     assume(abs(abs(geometry.positioner_secondary_deg) - 90) > 1e-3)
     assert abs(geometry.source_to_isocenter_mm - iso * 1000) <= ROUND_TRIP * 1000
     assert pose_error(geometry.source_pose(), system.fk(q)) <= ROUND_TRIP
@@ -114,18 +145,23 @@ def test_table_joints_appear_as_the_table_angles():
 
 
 # --- patient-based XA angles -----------------------------------------------------------------------------
-@given(st.data())
-def test_xa_angles_round_trip(data):
+@pytest.mark.parametrize("convention", CONVENTIONS)
+@pytest.mark.parametrize("code", sorted(PATIENT_POSITIONS))
+@given(data=st.data())
+def test_xa_angles_round_trip(code, convention, data):
+    """pose → XA angles → pose for every Patient Position code and both conventions; the primary and
+    secondary angles (patient-based, unambiguous) are the same in both conventions."""
     system = data.draw(systems())
     q = data.draw(configurations(system, beyond=0.3))
-    code = data.draw(st.sampled_from(sorted(PATIENT_POSITIONS)))
     origin = data.draw(st.tuples(*[st.floats(-0.5, 0.5, **finite)] * 3))
     patient = dicom.patient_pose(code, origin)
     T = system.fk(q)
-    primary, secondary, rotation = dicom.xa_angles(T, patient)
+    primary, secondary, rotation = dicom.xa_angles(T, patient, convention=convention)
     assume(abs(abs(secondary) - 90) > 1e-3)
+    assert (primary, secondary) == dicom.xa_angles(T, patient)[:2]
     iso = data.draw(st.floats(0.2, 1.2, **finite))
-    T_again = dicom.pose_from_xa_angles(primary, secondary, T[:3, 3] + iso * T[:3, 2], iso, patient, rotation)
+    T_again = dicom.pose_from_xa_angles(primary, secondary, T[:3, 3] + iso * T[:3, 2], iso, patient, rotation,
+                                        convention=convention)
     assert pose_error(T_again, T) <= ROUND_TRIP
 
 
@@ -185,17 +221,18 @@ def through_a_file(ds):
     return pydicom.dcmread(buffer)
 
 
+@pytest.mark.parametrize("convention", CONVENTIONS)
 @settings(max_examples=15)
-@given(st.data())
-def test_enhanced_xa_dataset_round_trip(data):
+@given(data=st.data())
+def test_enhanced_xa_dataset_round_trip(convention, data):
     pytest.importorskip("pydicom")
     from carmkin.interop import dicom_io
 
     system = data.draw(systems())
     q = data.draw(configurations(system))
-    ds = through_a_file(dicom_io.write_enhanced_xa(system, q))
+    ds = through_a_file(dicom_io.write_enhanced_xa(system, q, convention=convention))
     assert ds.SharedFunctionalGroupsSequence[0].IsocenterReferenceSystemSequence[0].TableHeadTiltAngle is not None
-    view = dicom_io.view_from_dataset(ds)
+    view = dicom_io.view_from_dataset(ds, convention=convention)
     assert view.source == "isocenter reference system"
     assert pose_error(view.pose, system.fk(q)) <= FILE_ROUND_TRIP
 
@@ -223,8 +260,17 @@ def test_missing_geometry_is_reported():
     pydicom = pytest.importorskip("pydicom")
     from carmkin.interop import dicom_io
 
-    with pytest.raises(dicom.DicomGeometryError, match="PositionerPrimaryAngle"):
-        dicom_io.view_from_dataset(pydicom.Dataset())
+    ds = pydicom.Dataset()
+    with pytest.raises(dicom.DicomGeometryError, match=r"no geometry: .*PositionerPrimaryAngle \(0018,1510\)"):
+        dicom_io.view_from_dataset(ds)
+    ds.PositionerPrimaryAngle = 10.0
+    with pytest.raises(dicom.DicomGeometryError, match=r"PatientPosition \(0018,5100\) is required"):
+        dicom_io.view_from_dataset(ds)
+    with pytest.raises(dicom.DicomGeometryError, match=r"PositionerSecondaryAngle \(0018,1511\) is required"):
+        dicom_io.view_from_dataset(ds, patient_position="HFS")
+    ds.SOPClassUID = dicom_io.ENHANCED_XA_SOP_CLASS
+    with pytest.raises(dicom.DicomGeometryError, match=r"SharedFunctionalGroupsSequence \(5200,9229\) is required"):
+        dicom_io.view_from_dataset(ds)
 
 
 def test_moves_reproduce_the_view_of_a_dicom_image():

@@ -181,3 +181,27 @@ def test_diffdrr_perspective_projection_matches():
         theirs = drr.perspective_projection(pose, torch.tensor(X, dtype=torch.float64)[None])[0].numpy()
         ours = pixels(imaging.projection_from_pose(K, T), X) + 0.5
         assert np.abs(theirs - ours).max() <= 1e-6 * np.abs(ours).max()
+
+
+# --- issue 19: a K whose last row is not (0, 0, 1) is refused, never dropped ----------------------------
+@pytest.mark.parametrize("make", ["nanodrr_detector", "diffdrr_detector"])
+@pytest.mark.parametrize("row", [(0.0, 0.0, 5.0), (0.0, 0.0, 0.2), (1e-3, 0.0, 1.0), (0.0, 0.0, 0.0)])
+def test_detector_refuses_a_k_with_a_wrong_last_row(make, row):
+    # before: K[2] was dropped, a focal length 5x off in the simulator for K[2, 2] = 5
+    from carmkin.errors import SimulatorConventionError
+    from carmkin.interop import simulators
+
+    system = carmkin.load_preset("siremobile-iso-c3d")
+    K = system.carm.intrinsics().copy()
+    K[2] = row
+    with pytest.raises(SimulatorConventionError, match="K"):
+        getattr(simulators, make)(K, (system.carm.detector_columns, system.carm.detector_rows), 1000.0)
+
+
+@pytest.mark.parametrize("size", [None, "ab", (0, 10), (True, 10), (10.5, 10), (10,)])
+def test_detector_refuses_bad_sizes(size):
+    from carmkin.errors import SimulatorConventionError
+    from carmkin.interop import simulators
+
+    with pytest.raises(SimulatorConventionError):
+        simulators.nanodrr_detector(np.diag([1000.0, 1000.0, 1.0]), size, 1000.0)
