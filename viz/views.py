@@ -60,7 +60,7 @@ def draw_view_sphere(viewer: CArmViewer, reach, radius: float = 0.5, name: str =
     clearance = np.where(reach.reachable.ravel(), reach.clearance.ravel(), np.nan)
     colours = clearance_colours(clearance)
     viewer.root[name].set_object(mg.PointsGeometry(points.T, color=colours.T),
-                                 mg.PointsMaterial(size=0.02, vertexColors=True))
+                                 mg.PointsMaterial(size=0.02))
 
 
 def reach_map_page(system, reach, patient=None) -> str:

@@ -18,37 +18,27 @@ import json
 
 import numpy as np
 
-from ._common import (
-    add_preset_argument,
-    format_joints,
-    joints_json,
-    number,
-    output_path,
-    parse_joints,
-    parse_numbers,
-    plot_path,
-    system_from_args,
-)
+from . import _common as common
 
 HELP = "plan clinical views (LAO/RAO, CRA/CAU) around a patient, map reachable views"
 MM = 1000.0
 
 
 def _common(parser: argparse.ArgumentParser) -> None:
-    add_preset_argument(parser)
+    common.add_preset_argument(parser)
     parser.add_argument("--target-mm", metavar="X,Y,Z", default="0,0,0",
                         help="the point the beam passes through, table frame (mm, default 0,0,0)")
     parser.add_argument("--patient", choices=("parametric", "none"), default="parametric",
                         help="a parametric patient lying on the table (default) or none")
     parser.add_argument("--patient-position", default="HFS", metavar="CODE",
                         help="DICOM Patient Position (HFS, HFP, HFDR, HFDL, FFS, FFP, FFDR, FFDL; default HFS)")
-    parser.add_argument("--patient-height-mm", type=number(400.0, 2800.0, unit="mm"), default=1750.0,
+    parser.add_argument("--patient-height-mm", type=common.number(400.0, 2800.0, unit="mm"), default=1750.0,
                         help="body height (mm, default 1750)")
-    parser.add_argument("--patient-mass-kg", type=number(1.0, 650.0, unit="kg"), default=75.0,
+    parser.add_argument("--patient-mass-kg", type=common.number(1.0, 650.0, unit="kg"), default=75.0,
                         help="body mass (kg, default 75)")
-    parser.add_argument("--patient-chest-z-mm", type=number(-3000.0, 3000.0, unit="mm"), default=0.0,
+    parser.add_argument("--patient-chest-z-mm", type=common.number(-3000.0, 3000.0, unit="mm"), default=0.0,
                         help="the chest (nipple line) along the table, Z0 (mm, default 0)")
-    parser.add_argument("--margin-mm", type=number(0.0, 1000.0, unit="mm"), default=20.0,
+    parser.add_argument("--margin-mm", type=common.number(0.0, 1000.0, unit="mm"), default=20.0,
                         help="clearance every moving part keeps (mm, default 20)")
 
 
@@ -57,10 +47,10 @@ def register(parser: argparse.ArgumentParser) -> None:
     plan = sub.add_parser("plan", help="plan one view", description=__doc__,
                           formatter_class=argparse.RawDescriptionHelpFormatter)
     _common(plan)
-    plan.add_argument("--primary-deg", type=number(-180.0, 180.0, unit="deg"), help="primary angle (LAO +, deg)")
-    plan.add_argument("--secondary-deg", type=number(-90.0, 90.0, unit="deg"), help="secondary angle (CRA +, deg)")
+    plan.add_argument("--primary-deg", type=common.number(-180.0, 180.0, unit="deg"), help="primary angle (LAO +, deg)")
+    plan.add_argument("--secondary-deg", type=common.number(-90.0, 90.0, unit="deg"), help="secondary angle (CRA +, deg)")
     plan.add_argument("--standard", metavar="NAME", help="a standard view's name ('list' lists them)")
-    plan.add_argument("--distance-mm", type=number(0.0, 10000.0, open_minimum=True, unit="mm"),
+    plan.add_argument("--distance-mm", type=common.number(0.0, 10000.0, open_minimum=True, unit="mm"),
                       help="source-to-target distance (mm; default: free)")
     plan.add_argument("--q-mm-deg", metavar="Q", help="current joints (mm, deg): the plan moves least from them")
     plan.add_argument("--json", action="store_true", help="print the plan as JSON")
@@ -70,7 +60,7 @@ def register(parser: argparse.ArgumentParser) -> None:
     _common(cmap)
     cmap.add_argument("--primary-range-deg", metavar="LO,HI", default="-90,90", help="primary angles (deg)")
     cmap.add_argument("--secondary-range-deg", metavar="LO,HI", default="-45,45", help="secondary angles (deg)")
-    cmap.add_argument("--step-deg", type=number(0.1, 90.0, unit="deg"), default=5.0, help="grid step (deg, default 5)")
+    cmap.add_argument("--step-deg", type=common.number(0.1, 90.0, unit="deg"), default=5.0, help="grid step (deg, default 5)")
     cmap.add_argument("--plot", metavar="FILE", help="write the map as a figure (png, pdf, svg, ...)")
     cmap.add_argument("--html", metavar="FILE", help="write a static page: the sphere of views coloured by clearance")
     cmap.add_argument("--json", metavar="FILE", help="write the cells as JSON")
@@ -91,7 +81,6 @@ def _patient(system, args):
 
 
 def _plan(args: argparse.Namespace) -> int:
-    from carmkin.commands._common import UsageError
     from carmkin.views import View, plan_view
     from carmkin.views.standard import STANDARD_VIEWS, standard_view
 
@@ -100,21 +89,21 @@ def _plan(args: argparse.Namespace) -> int:
             print(f"{v.name:20s} primary {v.primary_deg:+6.1f}°, secondary {v.secondary_deg:+6.1f}°  {v.description}"
                   f"  [{v.source}]")
         return 0
-    system = system_from_args(args)
-    target = parse_numbers(args.target_mm, 3, "--target-mm") / MM
+    system = common.system_from_args(args)
+    target = common.parse_numbers(args.target_mm, 3, "--target-mm") / MM
     patient = _patient(system, args)
     position = patient if patient is not None else args.patient_position
     distance = None if args.distance_mm is None else args.distance_mm / MM
     if args.standard is not None:
         if args.primary_deg is not None or args.secondary_deg is not None:
-            raise UsageError("--standard: give either a standard view or --primary-deg/--secondary-deg, not both")
+            raise common.UsageError("--standard: give either a standard view or --primary-deg/--secondary-deg, not both")
         view = standard_view(args.standard, target, position)
         view = View(view.target, view.direction, distance, view.name)
     elif args.primary_deg is None or args.secondary_deg is None:
-        raise UsageError("--primary-deg and --secondary-deg (or --standard NAME) are required")
+        raise common.UsageError("--primary-deg and --secondary-deg (or --standard NAME) are required")
     else:
         view = View.from_angles(args.primary_deg, args.secondary_deg, target, position, distance)
-    q_current = None if args.q_mm_deg is None else parse_joints(args.q_mm_deg, system, "--q-mm-deg")
+    q_current = None if args.q_mm_deg is None else common.parse_joints(args.q_mm_deg, system, "--q-mm-deg")
     plan = plan_view(system, view, patient, q_current, margin=args.margin_mm / MM)
     if args.json:
         print(json.dumps(_plan_json(system, plan, position), indent=2))
@@ -131,7 +120,7 @@ def _describe_view(view, position) -> str:
 def _print_plan(system, plan, position) -> None:
     print(f"view {plan.view.name or ''} {_describe_view(plan.view, position)}".replace("  ", " "))
     if plan.success:
-        print(f"reachable: q = {format_joints(system, plan.q)}")
+        print(f"reachable: q = {common.format_joints(system, plan.q)}")
         print(f"clearance {plan.clearance * MM:.1f} mm, source-to-target {plan.distance * MM:.1f} mm")
         for m in plan.moves:
             print(f"  move {m.joint}: {'clear' if m.clear else 'blocked'}" + (f" ({m.reason})" if m.reason else ""))
@@ -140,39 +129,38 @@ def _print_plan(system, plan, position) -> None:
     if plan.nearest is not None:
         n = plan.nearest
         print(f"nearest reachable view: {_describe_view(n.view, position)}, {np.degrees(plan.angle):.2f}° away, "
-              f"q = {format_joints(system, n.q)}, clearance {n.clearance * MM:.1f} mm")
+              f"q = {common.format_joints(system, n.q)}, clearance {n.clearance * MM:.1f} mm")
 
 
 def _plan_json(system, plan, position) -> dict:
     out = {"success": plan.success, "angles_deg": list(plan.view.angles(position)),
            "reason": plan.reason, "binding": plan.binding}
     if plan.success:
-        out.update(q=joints_json(system, plan.q), clearance_mm=plan.clearance * MM, distance_mm=plan.distance * MM)
+        out.update(q=common.joints_json(system, plan.q), clearance_mm=plan.clearance * MM, distance_mm=plan.distance * MM)
     if plan.nearest is not None:
         out["nearest"] = {"angles_deg": list(plan.nearest.view.angles(position)), "angle_deg": float(np.degrees(plan.angle)),
-                          "q": joints_json(system, plan.nearest.q), "clearance_mm": plan.nearest.clearance * MM}
+                          "q": common.joints_json(system, plan.nearest.q), "clearance_mm": plan.nearest.clearance * MM}
     return out
 
 
 def _range(text, option, step):
-    lo, hi = parse_numbers(text, 2, option)
-    from carmkin.commands._common import UsageError
+    lo, hi = common.parse_numbers(text, 2, option)
 
     if lo > hi:
-        raise UsageError(f"{option} {text}: expected LO <= HI (deg)")
+        raise common.UsageError(f"{option} {text}: expected LO <= HI (deg)")
     return np.arange(lo, hi + 1e-9, step)
 
 
 def _map(args: argparse.Namespace) -> int:
     from carmkin.views import reach_map
 
-    system = system_from_args(args)
-    target = parse_numbers(args.target_mm, 3, "--target-mm") / MM
+    system = common.system_from_args(args)
+    target = common.parse_numbers(args.target_mm, 3, "--target-mm") / MM
     primary = _range(args.primary_range_deg, "--primary-range-deg", args.step_deg)
     secondary = _range(args.secondary_range_deg, "--secondary-range-deg", args.step_deg)
-    paths = {k: v for k, v in (("plot", args.plot and plot_path(args.plot, "--plot")),
-                               ("html", args.html and output_path(args.html, "--html", ("html",))),
-                               ("json", args.json and output_path(args.json, "--json", ("json",)))) if v}
+    paths = {k: v for k, v in (("plot", args.plot and common.plot_path(args.plot, "--plot")),
+                               ("html", args.html and common.output_path(args.html, "--html", ("html",))),
+                               ("json", args.json and common.output_path(args.json, "--json", ("json",)))) if v}
     patient = _patient(system, args)
     m = reach_map(system, target, primary, secondary, patient, position=patient or args.patient_position,
                   margin=args.margin_mm / MM)
@@ -199,7 +187,7 @@ def _map(args: argparse.Namespace) -> int:
         cells = [{"primary_deg": float(p), "secondary_deg": float(s), "reachable": bool(m.reachable[i, j]),
                   "clearance_mm": None if not m.reachable[i, j] else float(m.clearance[i, j] * MM),
                   "binding": str(m.binding[i, j]),
-                  "q": joints_json(system, m.q[i, j]) if m.reachable[i, j] else None}
+                  "q": common.joints_json(system, m.q[i, j]) if m.reachable[i, j] else None}
                  for i, p in enumerate(m.primary_deg) for j, s in enumerate(m.secondary_deg)]
         paths["json"].write_text(json.dumps({"target_mm": list(target * MM), "cells": cells}), encoding="utf-8")
         print(f"wrote {paths['json']}")

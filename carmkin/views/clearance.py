@@ -72,6 +72,7 @@ class World:
         self._seg_vv = np.maximum(np.einsum("ij,ij->i", self._seg_v, self._seg_v), 1e-300)
         self._seg_r = np.array([r for _, _, r in seg])
         self._beam_parts = self._beam_spheres(objects)
+        self._inscribed = self._inscribed_spheres(objects)
         names = {o.name for o in self.obstacles}
         self._environment = [o for o in objects if o.name in names or link_of(o.name) == "table"]
 
@@ -112,6 +113,45 @@ class World:
     def pair_names(self, k: int) -> tuple[str, str]:
         return self.scene.pairs[k]
 
+    # --- certain contacts, vectorised ---------------------------------------------------------------------
+    def _inscribed_spheres(self, objects):
+        """(link, centre in the link frame (3,), radius) of a sphere inside each moving box, and the fixed
+        bodies (table top, obstacles) they are paired with."""
+        q0 = pin.neutral(self.model)
+        data = self.model.createData()
+        pin.framesForwardKinematics(self.model, data, q0)
+        pin.updateGeometryPlacements(self.model, data, self.scene.geometry_model, self.scene.geometry_data)
+        moving = set(self.first.tolist())
+        out = []
+        for g in sorted(moving):
+            o = objects[g]
+            if type(o.geometry).__name__ != "Box":
+                continue
+            link = link_of(o.name)
+            frame = data.oMf[self.model.getFrameId(link)]
+            centre = frame.actInv(self.scene.geometry_data.oMg[g].translation)
+            out.append((link, centre, float(np.min(o.geometry.halfSide))))
+        return out
+
+    def certainly_closer(self, Q: np.ndarray, margin: float) -> np.ndarray:
+        """(M,) True where configuration Q[m] (M, nq) certainly has a pair closer than ``margin`` (m): a sphere
+        inside a moving box is already that close to the table top or an obstacle (exact point distances).
+        Link frames are the system's DH frames, source and detector frames (its closed-form FK)."""
+        frames, source = _link_poses(self.system, Q)
+        system = self.system
+        poses = {f"dh_frame_{k + 1}": frames[:, k] for k in range(6)}
+        poses["xray_source"] = source
+        poses["detector"] = source @ system.detector_in_xray
+        out = np.zeros(len(Q), dtype=bool)
+        for link, centre, radius in self._inscribed:
+            T = poses.get(link)
+            if T is None:
+                continue
+            points = T[:, :3, :3] @ centre + T[:, :3, 3]
+            for o in self._environment:
+                out |= _point_distance(o, points) - radius < margin
+        return out
+
     # --- cheap bound for ranking ---------------------------------------------------------------------------
     def _beam_spheres(self, objects):
         """(offset along the beam from the source (m), radius (m)) of spheres holding the source housing and
@@ -143,6 +183,22 @@ class World:
             for o in self._environment:
                 out = np.minimum(out, _point_distance(o, centres) - radius)
         return out
+
+
+def _link_poses(system, Q):
+    """DH frames 1..6 (M, 6, 4, 4) and source poses (M, 4, 4) of configurations Q (M, nq): the closed form,
+    with a motorized table's motion ``Tz(d0) E(q_table)`` computed once per distinct table configuration."""
+    if not system.table.joints:
+        return system.dh_frames(Q), system.fk(Q)
+    from carmkin.model import kinematics
+
+    q6, q_table = system.split(Q)
+    distinct, which = np.unique(q_table, axis=0, return_inverse=True)
+    E = np.array([system.table_motion(v) for v in distinct])[np.ravel(which)]
+    E[:, 2, 3] += q6[:, 0]
+    q6 = q6.copy()
+    q6[:, 0] = 0.0
+    return E[:, None] @ kinematics.dh_frames(system.dh_table, q6), E @ system.closed_form.poses(q6)
 
 
 def _point_distance(obj, points: np.ndarray) -> np.ndarray:

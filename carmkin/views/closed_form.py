@@ -26,6 +26,9 @@ import numpy as np
 from carmkin.model.params import JOINT_RANGE_TOLERANCE
 from carmkin.transforms import wrap_angle
 
+#: Ranges are met to half the joint-range tolerance, so that the rounding of the joints computed from λ
+#: keeps them within :data:`~carmkin.model.params.JOINT_RANGE_TOLERANCE` (a value on a limit is in range).
+INTERVAL_TOLERANCE = 0.5 * JOINT_RANGE_TOLERANCE
 #: Below this, |(U_x, G_x)| leaves the distance line undefined (the family is skipped; its neighbours in θ2
 #: are not) and |cos θ5| makes θ4 a free roll (it keeps the reference value).
 DEGENERATE = 1e-12
@@ -68,7 +71,7 @@ def _interval(alpha, beta, low, high):
 def _representative(theta, lower, upper, reference):
     """θ or θ ∓ 2π: the one in [lower, upper] nearest ``reference``; NaN-free excess (rad) of the better."""
     alt = theta - 2 * np.pi * np.sign(theta)
-    tol = JOINT_RANGE_TOLERANCE
+    tol = INTERVAL_TOLERANCE
 
     def excess(x):
         return np.maximum(lower - tol - x, 0) + np.maximum(x - upper - tol, 0)
@@ -108,7 +111,7 @@ def families(system, targets, directions, theta2, frame, q_ref, distance_range) 
     j4, j5 = system.nq - 2, system.nq - 1
     theta4 = np.where(h > DEGENERATE, np.arctan2(sigma * Ux, sigma * Uz), wrap_angle(q_ref[j4]))
     theta4, e4 = _representative(theta4, lower[j4], upper[j4], q_ref[j4])
-    tol = JOINT_RANGE_TOLERANCE
+    tol = INTERVAL_TOLERANCE
     e5 = np.maximum(lower[j5] - tol - theta5, 0) + np.maximum(theta5 - upper[j5] - tol, 0)
     s4, c4 = np.sin(theta4), np.cos(theta4)
     g = a1 - L * c5 - a2 * s5

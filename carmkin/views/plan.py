@@ -38,6 +38,10 @@ PATIENT_TABLE_TOLERANCE = 0.001
 #: Angular band (rad) of the nearest-view search, and its last angle.
 NEAREST_BAND = math.radians(2.0)
 NEAREST_LIMIT = math.radians(180.0)
+#: Ring directions of the nearest-view search: azimuth spacing (deg) and exact checks per direction (the grid
+#: directions get the full search of a map cell, so the answer is never behind an integer-degree map).
+RING_SPACING_DEG = 2.0
+RING_CHECKS = 8
 
 
 @dataclass(frozen=True)
@@ -214,22 +218,21 @@ def _replace(plan, **changes):
     return dataclasses.replace(plan, **changes)
 
 
-def _band_directions(view: View, lo: float, hi: float, frame) -> np.ndarray:
-    """Directions at angles [lo, hi) from the view's axis: rings every 1° of angle with ≤ 1° spacing, and the
-    integer-degree grid of XA angles in the patient ``frame``."""
+def _band_directions(view: View, lo: float, hi: float, frame) -> tuple[np.ndarray, np.ndarray]:
+    """``(rings, grid)``: directions at angles [lo, hi) from the view's axis — rings every 1° of angle with
+    azimuths ≤ :data:`RING_SPACING_DEG` apart, and the integer-degree grid of XA angles in the patient ``frame``."""
     z = view.axis
     e1 = np.cross(z, np.eye(3)[int(np.argmin(np.abs(z)))])
     e1 /= np.linalg.norm(e1)
     e2 = np.cross(z, e1)
-    out = []
+    rings = [np.zeros((0, 3))]
     for a in np.arange(max(lo, math.radians(1.0)), hi, math.radians(1.0)):
-        n = max(8, int(math.ceil(360 * math.sin(a))))
+        n = max(8, int(math.ceil(360 * math.sin(a) / RING_SPACING_DEG)))
         phi = np.linspace(0, 2 * math.pi, n, endpoint=False)[:, None]
-        out.append(math.cos(a) * z + math.sin(a) * (np.cos(phi) * e1 + np.sin(phi) * e2))
+        rings.append(math.cos(a) * z + math.sin(a) * (np.cos(phi) * e1 + np.sin(phi) * e2))
     grid = _grid_directions(frame.tobytes())
     angle = np.arccos(np.clip(grid @ z, -1, 1))
-    out.append(grid[(angle >= lo) & (angle < hi)])
-    return np.vstack(out) if out else np.zeros((0, 3))
+    return np.vstack(rings), grid[(angle >= lo) & (angle < hi)]
 
 
 @functools.lru_cache(maxsize=4)
@@ -248,16 +251,21 @@ def beam_directions(R_patient, primary, secondary) -> np.ndarray:
 
 
 def _with_nearest(plan: ViewPlan, ctx, view: View, patient) -> ViewPlan:
+    import dataclasses
+
     frame = _patient_frame(patient if patient is not None and hasattr(patient, "pose") else "HFS")
+    quick = dataclasses.replace(ctx, max_checks=RING_CHECKS)
     lo = 0.0
     while lo < NEAREST_LIMIT:
         hi = lo + NEAREST_BAND
-        directions = _band_directions(view, lo, hi, frame)
-        if len(directions):
-            views = [View(view.target, tuple(d), view.distance, f"nearest to {view.name}".strip()) for d in directions]
-            plans = [p for p in _plan_cells(ctx, views) if p.success]
-            if plans:
-                best = min(plans, key=lambda p: (round(view.angle_to(p.view), 12), -p.clearance))
-                return _replace(plan, nearest=best, angle=view.angle_to(best.view))
+        rings, grid = _band_directions(view, lo, hi, frame)
+        plans = []
+        for directions, context in ((grid, ctx), (rings, quick)):
+            if len(directions):
+                views = [View(view.target, tuple(d), view.distance, f"nearest to {view.name}".strip()) for d in directions]
+                plans += [p for p in _plan_cells(context, views) if p.success]
+        if plans:
+            best = min(plans, key=lambda p: (round(view.angle_to(p.view), 12), -p.clearance))
+            return _replace(plan, nearest=best, angle=view.angle_to(best.view))
         lo = hi
     return plan

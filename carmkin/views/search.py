@@ -29,8 +29,12 @@ THETA2_STEP = math.radians(0.5)
 DISTANCE_SAMPLES = 9
 #: Clearances within this (m) rank as equal; the least motion decides between them.
 CLEARANCE_BIN = 0.01
+#: Distances tried per family besides the best-scored one, as fractions of its interval (ends included).
+DISTANCE_CHOICES = (0.0, 1.0, 0.5, 0.25, 0.75, 0.125, 0.875)
+#: Candidates per cell screened together (vectorised) before their exact checks.
+ROUND = 32
 #: Exact checks per cell before it is declared unreachable by contact.
-MAX_EXACT_CHECKS = 64
+MAX_EXACT_CHECKS = 96
 
 
 @dataclass
@@ -44,6 +48,7 @@ class Context:
     q_ref: np.ndarray
     holds: list
     theta2: np.ndarray
+    max_checks: int = 0  # exact checks per cell (0: MAX_EXACT_CHECKS)
 
 
 def make_context(system, world, margin, q_ref, table_samples=None) -> Context:
@@ -116,9 +121,10 @@ def solve_cells(ctx: Context, targets, directions, distance_range) -> Outcome:
         if not has.all():
             miss = ~has
             score[miss] = world.beam_bound(targets[n[miss]] - s_star[miss, None] * directions[n[miss]], directions[n[miss]])
-        # Distance choices per family: the best-scored one and the ends and middle of its interval (the
+        # Distance choices per family: the best-scored one and points spread over its interval (the
         # bound ranks loosely: the candidates are tried round-robin over these choices).
-        for kind, s_try in enumerate((s_star, s_lo, s_hi, 0.5 * (s_lo + s_hi))):
+        choices = [s_star] + [s_lo + f * (s_hi - s_lo) for f in DISTANCE_CHOICES]
+        for kind, s_try in enumerate(choices):
             if kind:
                 score = world.beam_bound(targets[n] - s_try[:, None] * directions[n], directions[n])
             lam = _lambda_at(fam, idx, s_try)
@@ -141,33 +147,47 @@ def solve_cells(ctx: Context, targets, directions, distance_range) -> Outcome:
         order = np.lexsort((motion, -np.floor(score / CLEARANCE_BIN), kind, n))
         n, q, kind = n[order], q[order], kind[order]
         # Round-robin over the distance choices: the k-th best of each choice before the (k+1)-th of any.
-        rank = np.zeros(len(n), dtype=int)
         group = np.flatnonzero(np.r_[True, (n[1:] != n[:-1]) | (kind[1:] != kind[:-1])])
-        sizes = np.diff(np.r_[group, len(n)])
-        rank = np.arange(len(n)) - np.repeat(group, sizes)
+        rank = np.arange(len(n)) - np.repeat(group, np.diff(np.r_[group, len(n)]))
         order = np.lexsort((kind, rank, n))
         n, q = n[order], q[order]
         starts = np.flatnonzero(np.r_[True, n[1:] != n[:-1]])
-        ends = np.r_[starts[1:], len(n)]
-        for a, b in zip(starts.tolist(), ends.tolist()):
-            cell = int(n[a])
-            closest = (np.inf, -1)
-            for k in range(a, min(b, a + MAX_EXACT_CHECKS)):
+        position = np.arange(len(n)) - np.repeat(starts, np.diff(np.r_[starts, len(n)]))
+        checks = np.zeros(N, dtype=int)
+        limit = ctx.max_checks or MAX_EXACT_CHECKS
+        closest = {}
+        for first in range(0, int(position.max()) + 1, ROUND):
+            rows = np.flatnonzero((position >= first) & (position < first + ROUND) & ~reachable[n]
+                                  & (checks[n] < limit))
+            if not len(rows):
+                break
+            # Candidates that certainly touch (a sphere inside a moving part already within the margin of the
+            # table or the patient) never reach coal.
+            rows = rows[~world.certainly_closer(q[rows], ctx.margin)]
+            for k in rows.tolist():
+                cell = int(n[k])
+                if reachable[cell] or checks[cell] >= limit:
+                    continue
+                checks[cell] += 1
                 d, pair = world.clearance(q[k], stop_below=ctx.margin)
                 if d >= ctx.margin:
                     reachable[cell], q_out[cell], clearance[cell] = True, q[k], d
                     T = system.fk(q[k])
                     distance[cell] = float(np.dot(targets[cell] - T[:3, 3], T[:3, 2]))
-                    break
-                if d < closest[0] or closest[1] < 0:
-                    closest = (d, pair)
-            else:
-                contact[cell] = closest
+                elif d < closest.get(cell, (np.inf, -1))[0]:
+                    closest[cell] = (d, pair)
+        for cell in np.unique(n).tolist():
+            if not reachable[cell]:
+                contact[cell] = closest.get(cell, (-np.inf, -1))
     for cell in np.flatnonzero(~reachable).tolist():
         if contact[cell] is not None:
             d, pair = contact[cell]
-            a, b = world.pair_names(pair)
-            reason[cell] = f"contact: {a} – {b} at {d * 1e3:.1f} mm (margin {ctx.margin * 1e3:.1f} mm)"
+            if pair < 0:
+                reason[cell] = (f"contact: every roll and distance in range brings a part of the C-arm within the "
+                                f"margin ({ctx.margin * 1e3:.1f} mm) of the table or the patient")
+            else:
+                a, b = world.pair_names(pair)
+                reason[cell] = f"contact: {a} – {b} at {d * 1e3:.1f} mm (margin {ctx.margin * 1e3:.1f} mm)"
             binding[cell] = "contact"
         elif np.isfinite(angle_excess[cell]) and angle_excess[cell] > 0 and not line_empty[cell]:
             reason[cell] = "joint limits: no roll puts the beam along the view within the angular and orbital ranges"
