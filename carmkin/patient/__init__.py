@@ -4,5 +4,6 @@ Either becomes obstacles of the collision scene (:meth:`obstacles`), placed by D
 """
 
 from .body import ParametricPatient
+from .ct import CTPatient
 
-__all__ = ["ParametricPatient"]
+__all__ = ["CTPatient", "ParametricPatient"]

@@ -55,22 +55,21 @@ def _brute_force_valid(system, patient, direction, scene, rolls_deg, distances) 
             T[:3, 3] = np.asarray(TARGET) - s * z
             poses.append(T)
     result = analytic_ik.solve_batch(system, np.array(poses))
-    for q in np.asarray(result.solutions).reshape(-1, system.nq):
-        if np.all(np.isfinite(q)) and all(rg.contains(v) for rg, v in zip(system.joint_ranges, q)):
-            if validity.check(system, q, margin=DEFAULT_MARGIN, scene=scene).reachable:
-                return True
-    return False
+    Q = np.asarray(result.solutions).reshape(-1, system.nq)
+    inside = np.all(np.isfinite(Q), axis=1)
+    inside[inside] = np.all([rg.contains(Q[inside, k]) for k, rg in enumerate(system.joint_ranges)], axis=0)
+    return any(scene.distances(q=q).min() >= DEFAULT_MARGIN for q in Q[inside])
 
 
 def test_unreachable_cells_are_unreachable(maps):
-    """≥ 200 unreachable cells of the 6-DOF systems: no roll at 1° steps and no distance (2 cm steps) gives a
+    """≥ 200 unreachable cells of the 6-DOF systems: no roll at 1° steps and no distance (5 cm steps) gives a
     configuration in range and clear of the margin."""
     rolls = np.arange(0.37, 360.0, 1.0)  # 1° steps, off the exactly singular integer rolls
     checked = 0
     for name in ("C-arm alone", "6-DOF", "non-isocentric"):
         system, patient, m = maps[name]
         scene = CollisionScene.from_system(system, patient.obstacles())
-        distances = np.arange(0.0, system.carm.source_to_detector + 1e-9, 0.02)
+        distances = np.arange(0.0, system.carm.source_to_detector + 1e-9, 0.05)
         cells = list(zip(*np.nonzero(~m.reachable)))
         for i, j in cells[:: max(1, len(cells) // 90)]:
             assert not _brute_force_valid(system, patient, m.directions[i, j], scene, rolls, distances), (
