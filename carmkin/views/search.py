@@ -31,6 +31,8 @@ DISTANCE_SAMPLES = 9
 CLEARANCE_BIN = 0.01
 #: Distances tried per family besides the best-scored one, as fractions of its interval (ends included).
 DISTANCE_CHOICES = (0.0, 1.0, 0.5, 0.25, 0.75, 0.125, 0.875)
+#: Cells searched together.
+CHUNK = 256
 #: Candidates per cell screened together (vectorised) before their exact checks.
 ROUND = 32
 #: Exact checks per cell before it is declared unreachable by contact.
@@ -90,7 +92,17 @@ def _lambda_at(fam, idx, s):
 
 
 def solve_cells(ctx: Context, targets, directions, distance_range) -> Outcome:
-    """Search N cells: targets/directions (N, 3) in the table frame, distance_range (N, 2) (m)."""
+    """Search N cells: targets/directions (N, 3) in the table frame, distance_range (N, 2) (m), in chunks of
+    :data:`CHUNK` cells (the candidate arrays of a chunk stay in cache)."""
+    if len(targets) <= CHUNK:
+        return _solve_chunk(ctx, targets, directions, distance_range)
+    parts = [_solve_chunk(ctx, targets[a:a + CHUNK], directions[a:a + CHUNK], distance_range[a:a + CHUNK])
+             for a in range(0, len(targets), CHUNK)]
+    return Outcome(*(np.concatenate([getattr(p, f) for p in parts]) for f in
+                     ("reachable", "q", "clearance", "distance", "reason", "binding")))
+
+
+def _solve_chunk(ctx: Context, targets, directions, distance_range) -> Outcome:
     system, world = ctx.system, ctx.world
     N = len(targets)
     span = np.maximum(system.upper - system.lower, 1e-9)

