@@ -175,6 +175,13 @@ class PoseError(CarmkinError):
     """Bad input to pose estimation (shapes, too few points, non-finite values) or no solution."""
 
 
+# --- carmkin.reposition.model -------------------------------------------------------------------
+
+
+class RepositionModelError(CarmkinError):
+    """Bad input to the model from a measured pose (system, pose, joint readings, covariance)."""
+
+
 # --- carmkin.reposition.calibration --------------------------------------------------------------
 
 
@@ -194,6 +201,14 @@ class GuidanceError(CarmkinError):
 
 class SimulationError(CarmkinError):
     """Bad simulation settings (noise levels, counts)."""
+
+
+# --- carmkin.reproduce ----------------------------------------------------------------------------
+
+
+class UnreachablePanoramaError(SimulationError):
+    """A planned image of a simulated panorama needs joints beyond their ranges, or leaves a marker in no
+    image: the procedure draws another first position (carmkin.reproduce.stitching, .chapter3)."""
 
 
 # --- carmkin.interop.simulators ------------------------------------------------------------------

@@ -36,26 +36,27 @@ def _save(fig: Figure, path, **kwargs) -> Figure:
 # --- singularity -------------------------------------------------------------------------------------------
 def singularity_maps(system, q, path=None, pair: tuple[int, int] = (4, 5), n: int = 61,
                      measure: str = "inverse-condition", length: float | None = None) -> Figure:
-    """Two maps: |det J| over (θ2, θ4) and ``measure`` over ``pair`` (joint indices of the 6-DOF chain), the
-    other joints at ``q``; singular curves overlaid, joint limits dashed. Axes in degrees (revolute) or mm
-    (prismatic). Saved as PNG to ``path`` when given."""
+    """Two maps: |det J| over (wigwag, angular) and ``measure`` over ``pair`` (two joints by name or index, any
+    system), the other joints at ``q``; singular curves overlaid, joint limits dashed. Axes in degrees
+    (revolute) or mm (prismatic). Saved as PNG to ``path`` when given."""
     from matplotlib.patches import Rectangle
 
-    from carmkin.model.params import JOINT_NAMES, PRISMATIC
     from carmkin.model.singular_cases import SingularCase
-    from carmkin.singularity import measure_map, singular_curves
+    from carmkin.singularity import _pair, measure_map, singular_curves
+
+    names, prismatic = system.joint_names, system.prismatic
 
     def label(joint: int) -> str:
-        return f"{JOINT_NAMES[joint]} ({'mm' if PRISMATIC[joint] else 'deg'})"
+        return f"{names[joint]} ({'mm' if prismatic[joint] else 'deg'})"
 
     fig = _figure((12, 5), layout="constrained")
-    panels = (((2, 4), "det"), (tuple(pair), measure))
+    panels = ((_pair(system, ("wigwag", "angular")), "det"), (_pair(system, pair), measure))
     for ax, (pr, meas) in zip(fig.subplots(1, 2), panels):
         x, y, values = measure_map(system, q, pr, n, meas, length)
-        scale = [1e3 if PRISMATIC[k] else 180.0 / math.pi for k in pr]
+        scale = [1e3 if prismatic[k] else 180.0 / math.pi for k in pr]
         mesh = ax.pcolormesh(x * scale[0], y * scale[1], values, shading="auto", cmap="viridis")
         fig.colorbar(mesh, ax=ax, label="|det J| (eq. 4.7)" if meas == "det" else meas)
-        for case, joint, value in singular_curves(system, pr):
+        for case, joint, value in singular_curves(system, pr, q):
             color = "red" if case == SingularCase.ORBITAL_PARALLEL_TO_WIGWAG else "orange"
             style = dict(color=color, lw=1.5, label=f"case ({case})")
             k = pr.index(joint)
@@ -73,7 +74,7 @@ def singularity_maps(system, q, path=None, pair: tuple[int, int] = (4, 5), n: in
             unique = dict(zip(labels, handles))
             ax.legend(unique.values(), unique.keys(), loc="upper right", fontsize=8)
         title = "|det J|" if meas == "det" else meas
-        ax.set_title(f"{title} over ({JOINT_NAMES[pr[0]]}, {JOINT_NAMES[pr[1]]}); sin γ1 = "
+        ax.set_title(f"{title} over ({names[pr[0]]}, {names[pr[1]]}); sin γ1 = "
                      f"{math.sin(system.setup.gamma1):+.3f}", fontsize=10)
     fig.suptitle(f"{system.name}: singularity maps (other joints at q)")
     return _save(fig, path, dpi=100)

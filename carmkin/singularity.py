@@ -48,10 +48,12 @@ from carmkin.errors import (
 )
 from carmkin.model import singular_cases
 from carmkin.model.kinematics import check_configuration
-from carmkin.model.params import JOINT_NAMES, PRISMATIC
+from carmkin.model.params import JOINT_NAMES
 from carmkin.model.singular_cases import SingularCase, SingularFactors
 from carmkin.model.system import CArmSystem
 from carmkin.transforms import wrap_angle
+from carmkin.validation import MAX_DISTANCE, MIN_DISTANCE, distance, instance, integer, real_scalar
+from carmkin.validation import joint_index as _joint_index
 
 #: Frame whose Jacobian is analysed, and the Pinocchio reference frame (twist at its origin, table axes).
 FRAME = "xray_source"
@@ -64,8 +66,12 @@ CASE_TITLES = {case: case.title for case in CASES}
 CASE_LOSSES = {case: case.loss for case in CASES}
 
 
+def _check_system(system) -> CArmSystem:
+    return instance(system, CArmSystem, "system", error=SingularityError, hint="carmkin.load_preset(...)")
+
+
 def _paper_chain(system: CArmSystem, q) -> np.ndarray:
-    if system.nq != 6:
+    if _check_system(system).nq != 6:
         raise SingularityError(
             f"eq. 4.7 and the three singular cases hold for the paper's 6-joint chain; system {system.name!r} "
             f"has {system.nq} joints ({', '.join(system.joint_names)})")
@@ -96,7 +102,7 @@ def singularity_distances(system: CArmSystem, q) -> dict[SingularCase, np.ndarra
 # --- Pinocchio ---------------------------------------------------------------------------------------------
 def jacobian(system: CArmSystem, q, reference_frame=REFERENCE_FRAME) -> np.ndarray:
     """Pinocchio's Jacobian (6, nq) of ``xray_source``: rows ``[v; ω]`` (m/s, rad/s), see module docstring."""
-    q = check_configuration(q, system.nq)
+    q = check_configuration(q, _check_system(system).nq)
     if q.ndim != 1:
         raise SingularityError(f"jacobian takes one configuration (nq,), got shape {q.shape}; use jacobians")
     model = system.pinocchio()[0]
@@ -106,7 +112,7 @@ def jacobian(system: CArmSystem, q, reference_frame=REFERENCE_FRAME) -> np.ndarr
 
 def jacobians(system: CArmSystem, q, reference_frame=REFERENCE_FRAME) -> np.ndarray:
     """Jacobians (N, 6, nq) for configurations (N, nq) (one Pinocchio call per configuration)."""
-    q = np.atleast_2d(check_configuration(q, system.nq))
+    q = np.atleast_2d(check_configuration(q, _check_system(system).nq))
     model = system.pinocchio()[0]
     data = model.createData()
     frame_id = model.getFrameId(FRAME)
@@ -125,19 +131,23 @@ def det_jacobian(system: CArmSystem, q) -> np.ndarray:
 # --- scale-aware measures -----------------------------------------------------------------------------------
 def characteristic_length(system: CArmSystem) -> float:
     """Default characteristic length L (m): the orbital offset l2, source-to-angular-axis lever arm."""
-    return system.carm.orbital_offset
+    return _check_system(system).carm.orbital_offset
+
+
+#: Bounds (m) of a characteristic length: the physical distances of :mod:`carmkin.validation` (1 µm … 10 m),
+#: so that ``1/L`` and ``L`` scale a Jacobian without overflow or a NaN measure.
+MIN_LENGTH, MAX_LENGTH = MIN_DISTANCE, MAX_DISTANCE
 
 
 def _check_length(system: CArmSystem, length: float | None) -> float:
-    L = characteristic_length(system) if length is None else float(length)
-    if not math.isfinite(L) or L <= 0.0:
-        raise SingularityError(f"characteristic length must be a finite length > 0 m, got {length!r}")
-    return L
+    if length is None:
+        return characteristic_length(system)
+    return distance(length, "characteristic length", error=SingularityError, low=MIN_LENGTH, high=MAX_LENGTH)
 
 
 def scaling(system: CArmSystem, length: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """``(S, D)`` with ``Js = diag(S) · J · diag(D)``: S = (1/L)×3 then 1×3, D = L for prismatic joints."""
-    L = _check_length(system, length)
+    L = _check_length(_check_system(system), length)
     S = np.array([1.0 / L] * 3 + [1.0] * 3)
     D = np.where(np.array(system.prismatic), L, 1.0)
     return S, D
@@ -287,6 +297,9 @@ def classify(system: CArmSystem, q, near: float = math.radians(5.0), tol: float 
     q = _paper_chain(system, q)
     if q.ndim != 1:
         raise SingularityError(f"classify takes one configuration (6,), got shape {q.shape}")
+    near = real_scalar(near, "near", error=SingularityError, low=0.0, high=math.pi, unit="rad")
+    tol = real_scalar(tol, "tol", error=SingularityError, low=0.0, high=math.pi, unit="rad")
+    rtol = real_scalar(rtol, "rtol", error=SingularityError, low=0.0, high=1.0)
     if not (0.0 <= tol <= near):
         raise SingularityError(f"need 0 <= tol <= near (rad), got tol={tol}, near={near}")
     factors = singular_factors(system, q)
@@ -320,8 +333,10 @@ def check_determinant(system: CArmSystem, samples: int, random_setups: int = 0, 
     """Largest |det J (Pinocchio) − eq. 4.7| over random configurations (and random non-isocentric systems)."""
     from carmkin.model.sampling import random_configurations, random_system
 
-    rng = np.random.default_rng(seed)
-    systems = [system] + [random_system(rng, system) for _ in range(random_setups)]
+    samples = integer(samples, "samples", low=0, high=10_000_000, error=SingularityError)
+    random_setups = integer(random_setups, "random_setups", low=0, high=100_000, error=SingularityError)
+    rng = np.random.default_rng(integer(seed, "seed", low=0, error=SingularityError))
+    systems = [_check_system(system)] + [random_system(rng, system) for _ in range(random_setups)]
     worst = 0.0
     for k, sys_k in enumerate(systems):
         n = samples // len(systems) + (k < samples % len(systems))
@@ -336,49 +351,72 @@ def check_determinant(system: CArmSystem, samples: int, random_setups: int = 0, 
 MAP_MEASURES = ("det", "manipulability", "inverse-condition", "sigma-min")
 
 
-def joint_index(name: str) -> int:
-    """Index in q of a joint given by name (``wigwag``) or symbol (``theta2``, ``d3``)."""
-    symbols = ("d0", "d1", "theta2", "d3", "theta4", "theta5")
-    if not isinstance(name, str):
-        raise SingularityError(f"joint must be a name ({', '.join(JOINT_NAMES)}) or symbol, got {name!r}")
-    key = name.strip().lower()
-    if key in JOINT_NAMES:
-        return JOINT_NAMES.index(key)
-    if key in symbols:
-        return symbols.index(key)
-    raise SingularityError(f"unknown joint {name!r}: use one of {', '.join(JOINT_NAMES)} or {', '.join(symbols)}")
+#: The paper's symbols of the six joints every system has (§4.3.1), accepted wherever a joint name is.
+SYMBOLS = dict(zip(("d0", "d1", "theta2", "d3", "theta4", "theta5"), JOINT_NAMES))
+#: Most grid points per map axis (a 1001 x 1001 map): bounds the cost of a call.
+MAX_GRID = 1001
 
 
-def grid_axis(system: CArmSystem, joint: int, n: int) -> np.ndarray:
-    """``n`` grid values of a joint: revolute over a full turn [−π, π], prismatic over its range (m or rad)."""
-    if n < 2:
-        raise SingularityError(f"a grid needs at least 2 points per axis, got {n}")
-    if PRISMATIC[joint]:
+def joint_index(joint, system: CArmSystem | None = None) -> int:
+    """Index in q of ``system``'s joint (default: the paper's 6-joint chain) given by name (``"angular"``),
+    symbol (``"theta4"``) or index ``0 <= i < nq`` (:func:`carmkin.validation.joint_index`: no negative
+    alias, no bool, no float); else :class:`SingularityError` naming the valid names and range."""
+    names = JOINT_NAMES if system is None else _check_system(system).joint_names
+    if isinstance(joint, str):
+        key = joint.strip().lower()
+        joint = SYMBOLS.get(key, key) if key in SYMBOLS or key in names else joint
+    return _joint_index(joint, "joint", len(names), names=names, error=SingularityError)
+
+
+def _pair(system: CArmSystem, pair) -> tuple[int, int]:
+    if isinstance(pair, (str, bytes)) or not hasattr(pair, "__len__") or len(pair) != 2:
+        raise SingularityError(f"pair must be two joints (names or indices), got {pair!r}")
+    i, j = joint_index(pair[0], system), joint_index(pair[1], system)
+    if i == j:
+        raise SingularityError(f"a map needs two different joints, got {system.joint_names[i]} twice")
+    return i, j
+
+
+def grid_axis(system: CArmSystem, joint, n: int) -> np.ndarray:
+    """``n`` grid values of a joint (name or index, :func:`joint_index`): revolute over a full turn [−π, π],
+    prismatic over its range (m or rad)."""
+    joint = joint_index(joint, _check_system(system))
+    n = integer(n, "n (grid points per axis)", low=2, high=MAX_GRID, error=SingularityError)
+    if system.prismatic[joint]:
         r = system.joint_ranges[joint]
         return np.linspace(r.lower, r.upper, n)
     return np.linspace(-math.pi, math.pi, n)
+
+
+def _paper_columns(system: CArmSystem) -> list[int]:
+    """Indices in q of the paper's six joints (table translation and the five C-arm joints)."""
+    return [system.joint_names.index(name) for name in JOINT_NAMES]
 
 
 def measure_map(system: CArmSystem, q, pair: tuple[int, int], n: int = 61, measure: str = "det",
                 length: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(x, y, values)`` of a measure over two joints (others at q): values has shape (len(y), len(x)).
 
-    ``"det"`` (|det J|, eq. 4.7) is evaluated in closed form, vectorized; the other measures call
-    Pinocchio per grid point (fine for grids up to ~100×100).
+    Any system: ``pair`` names two joints by name, symbol or index (:func:`joint_index`), q has shape (nq,).
+    ``"det"`` is |det| of the Jacobian's columns of the paper's six joints (the extra table joints held):
+    on the 6-joint chain eq. 4.7 in closed form, vectorized; with a motorized table Pinocchio per grid point.
+    The other measures (of the scaled 6 x nq Jacobian) call Pinocchio per grid point (fine up to ~100×100).
     """
-    q = _paper_chain(system, q)
-    if measure not in MAP_MEASURES:
+    q = check_configuration(q, _check_system(system).nq)
+    if q.ndim != 1:
+        raise SingularityError(f"measure_map takes one configuration ({system.nq},), got shape {q.shape}")
+    if not isinstance(measure, str) or measure not in MAP_MEASURES:
         raise SingularityError(f"unknown measure {measure!r}: use one of {', '.join(MAP_MEASURES)}")
-    i, j = pair
-    if i == j:
-        raise SingularityError(f"a map needs two different joints, got {JOINT_NAMES[i]} twice")
+    i, j = _pair(system, pair)
     x, y = grid_axis(system, i, n), grid_axis(system, j, n)
-    grid = np.broadcast_to(q, (len(y), len(x), 6)).copy()
+    grid = np.broadcast_to(q, (len(y), len(x), system.nq)).copy()
     grid[..., i] = x[None, :]
     grid[..., j] = y[:, None]
-    flat = grid.reshape(-1, 6)
-    if measure == "det":
+    flat = grid.reshape(-1, system.nq)
+    if measure == "det" and system.nq == 6:
         values = np.abs(det_closed_form(system, flat))
+    elif measure == "det":
+        values = np.abs(np.linalg.det(jacobians(system, flat)[:, :, _paper_columns(system)]))
     else:
         S, D = scaling(system, length)
         sv = np.linalg.svd(S[:, None] * jacobians(system, flat) * D[None, :], compute_uv=False)
@@ -387,13 +425,39 @@ def measure_map(system: CArmSystem, q, pair: tuple[int, int], n: int = 61, measu
     return x, y, values.reshape(len(y), len(x))
 
 
-def singular_curves(system: CArmSystem, pair: tuple[int, int]) -> list[tuple[str, int, float]]:
-    """Singular sets that are lines in a map over ``pair``: ``(case, joint index, value)`` for θ4 = ±π/2
-    (case b) and θ2 = −γ3 + kπ (case c), values wrapped to (−π, π]."""
+def singular_curves(system: CArmSystem, pair, q=None) -> list[tuple[str, int, float]]:
+    """The C-arm's singular sets that are lines in a map over ``pair`` (two joints by name, symbol or index,
+    any system): ``(case, joint index in q, value)``, values wrapped to (−π, π].
+
+    Case b at the ``angular`` joint, θ4 = ±π/2. Case c at the ``wigwag`` joint, where the table axis Z0, the
+    vertical axis Z1 and the horizontal axis Z3 are coplanar: θ2 = −γ3 + kπ on the 6-joint chain; with a
+    motorized table the table top's joints turn Z0, so the wigwag values are solved from the DH frames at
+    ``q`` (nq,) (default: every joint at 0): ``(Z0 × Z1) · Z3(θ2) = 0`` with Z3 turning about Z2.
+    """
+    i, j = _pair(_check_system(system), pair)
+    q = np.zeros(system.nq) if q is None else check_configuration(q, system.nq)
+    if q.ndim != 1:
+        raise SingularityError(f"singular_curves takes one configuration ({system.nq},), got shape {q.shape}")
     out = []
-    b, c = SingularCase.ORBITAL_PARALLEL_TO_WIGWAG, SingularCase.TABLE_PARALLEL_TO_HORIZONTAL
-    for joint, case, values in ((4, b, (-math.pi / 2, math.pi / 2)),
-                                (2, c, (-system.setup.gamma3, math.pi - system.setup.gamma3))):
-        if joint in pair:
-            out += [(case, joint, wrap_angle(v)) for v in values]
+    names = system.joint_names
+    angular, wigwag = names.index("angular"), names.index("wigwag")
+    if angular in (i, j):
+        out += [(SingularCase.ORBITAL_PARALLEL_TO_WIGWAG, angular, wrap_angle(v)) for v in (-math.pi / 2, math.pi / 2)]
+    if wigwag in (i, j):
+        out += [(SingularCase.TABLE_PARALLEL_TO_HORIZONTAL, wigwag, v) for v in _case_c_wigwag(system, q, wigwag)]
     return out
+
+
+def _case_c_wigwag(system: CArmSystem, q: np.ndarray, wigwag: int) -> list[float]:
+    """Wigwag values (rad, wrapped) with ``(Z0 × Z1) · Z3 = 0``: ``Z3(φ) = Rodrigues(Z2, φ) Z3(q)`` gives
+    ``A cos φ + B sin φ + C = 0``; on the 6-joint chain this is θ2 = −γ3 + kπ (tested against it)."""
+    frames = system.dh_frames(q)
+    z1, z2, z3 = frames[0, :3, 2], frames[1, :3, 2], frames[2, :3, 2]
+    n = np.cross((0.0, 0.0, 1.0), z1)
+    c = float((n @ z2) * (z2 @ z3))
+    a, b = float(n @ z3) - c, float(n @ np.cross(z2, z3))
+    radius = math.hypot(a, b)
+    if radius == 0.0 or abs(c) > radius:
+        return []
+    base, spread = math.atan2(b, a), math.acos(max(-1.0, min(1.0, -c / radius)))
+    return sorted({wrap_angle(float(q[wigwag]) + base + s) for s in (spread, -spread)})

@@ -32,14 +32,16 @@ NEARLY_RIGID_TOLERANCE = 1e-3
 PARALLEL_TOLERANCE = 1e-15
 
 
-def _real(value, name: str, limit: float = MAGNITUDE_LIMIT, error: type[CarmkinError] = InvalidParameterError,
-          shape=None) -> np.ndarray:
+def _real(value, name: str, limit: float | None = JOINT_VALUE_LIMIT,
+          error: type[CarmkinError] = InvalidParameterError, shape=None) -> np.ndarray:
     """``value`` as a finite float array within ``limit``: a float64 array passes with two vectorized checks
-    (these helpers sit on hot paths), anything else through :func:`carmkin.validation.real_array`."""
+    (these helpers sit on hot paths), anything else through :func:`carmkin.validation.real_array`. The default
+    bound is the overflow guard :data:`~carmkin.validation.JOINT_VALUE_LIMIT`, not a physical one: the IK
+    evaluates (FK, residual, validity) branches whose joint values near a singular pose reach ~1e6 m."""
     if (type(value) is np.ndarray and value.dtype == np.float64 and (shape is None or value.shape == tuple(shape))
-            and np.max(np.abs(value), initial=0.0) <= limit):  # NaN compares False: falls through
+            and (limit is None or np.max(np.abs(value), initial=0.0) <= limit)):  # NaN compares False
         return value
-    return real_array(value, name, shape, error=error, limit=limit)
+    return real_array(value, name, shape, error=error, limit=limit, finite=limit is not None)
 
 
 def dh_matrix(theta, d, a, alpha) -> np.ndarray:
@@ -190,8 +192,13 @@ def rotation_angle(Ra, Rb):
 
 def pose_error(Ta, Tb):
     """``(position error m, rotation angle rad)`` between poses (..., 4, 4): ``‖pa − pb‖`` and the angle of
-    ``Raᵀ Rb`` (:func:`rotation_angle`). Floats for one pair of (4, 4), arrays (...) for stacks; symmetric."""
-    Ta, Tb = _real(Ta, "Ta", error=InvalidPoseError), _real(Tb, "Tb", error=InvalidPoseError)
+    ``Raᵀ Rb`` (:func:`rotation_angle`). Floats for one pair of (4, 4), arrays (...) for stacks; symmetric.
+
+    Junk types and shapes raise :class:`~carmkin.errors.InvalidPoseError`; magnitudes are not bounded and a
+    NaN/inf pose gives a NaN/inf error (never a finite number): the IK takes the residual of branches that
+    ran off to huge values or have no solution."""
+    # types and shapes only: the IK takes the residual of branches that may have run off to huge values
+    Ta, Tb = _real(Ta, "Ta", None, InvalidPoseError), _real(Tb, "Tb", None, InvalidPoseError)
     if Ta.ndim < 2 or Ta.shape[-2:] != (4, 4) or Tb.ndim < 2 or Tb.shape[-2:] != (4, 4):
         raise InvalidPoseError(f"Ta and Tb must have shape (..., 4, 4), got {Ta.shape} and {Tb.shape}")
     dp = np.linalg.norm(Ta[..., :3, 3] - Tb[..., :3, 3], axis=-1)

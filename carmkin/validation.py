@@ -281,3 +281,12 @@ def integer(value, name: str, *, low: int | None = None, high: int | None = None
             or (low is not None and value < low) or (high is not None and value > high)):
         raise error(f"{name} must be an integer{bounds}, got {_describe(value)}")
     return int(value)
+
+
+def instance(value, kind: type, name: str, *, error: type[CarmkinError] = InvalidParameterError,
+             hint: str = ""):
+    """``value`` when it is a ``kind`` (e.g. a :class:`carmkin.CArmSystem`), else ``error`` naming ``name``."""
+    if not isinstance(value, kind):
+        raise error(f"{name} must be a {kind.__module__}.{kind.__qualname__}{f' ({hint})' if hint else ''}, "
+                    f"got {_describe(value)}")
+    return value

@@ -24,6 +24,7 @@ LAYERS = (
     ("carmkin.studies", "carmkin.imaging", "carmkin.reposition", "carmkin.interop", "carmkin.plots",
      "carmkin.patient"),
     ("carmkin.views",),
+    ("carmkin.reproduce",),  # the dissertation's experiments: above the applications they simulate
     ("carmkin.viz",),
     ("carmkin.commands", "carmkin.cli"),
 )

@@ -108,3 +108,24 @@ def test_system_from_dict_refuses_non_dicts(data):
 def test_preset_provenance_refuses_non_paths(name):
     with pytest.raises(PresetError):  # before: TypeError / AttributeError
         preset_provenance(name)
+
+
+def test_homography_between_refuses_a_distance_without_a_normal():
+    from carmkin import imaging
+
+    K = PRESET.carm.intrinsics()
+    with pytest.raises(CarmkinError, match="without the plane normal"):  # before: d silently ignored
+        imaging.homography_between(K, np.eye(4), np.eye(4), None, 0.5)
+
+
+@pytest.mark.parametrize("junk", JUNK)
+def test_junk_system_is_typed(junk):
+    from carmkin import imaging, singularity
+    from carmkin.interop import simulators
+
+    q = np.zeros(6)
+    for call in (lambda: imaging.projection_matrix(junk, q), lambda: simulators.deepdrr_mobile_carm(junk, q),
+                 lambda: singularity.measures(junk, q), lambda: singularity.singular_curves(junk, (2, 4)),
+                 lambda: singularity.grid_axis(junk, 2, 5)):
+        with pytest.raises(CarmkinError, match="system"):  # before: AttributeError
+            call()

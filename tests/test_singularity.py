@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import warnings
 
 import numpy as np
 import pinocchio as pin
@@ -13,6 +15,7 @@ from strategies import PRESET, configurations, geometries, systems
 
 import carmkin
 from carmkin import singularity as sing
+from carmkin import transforms
 from carmkin.cli import main
 
 finite = dict(allow_nan=False, allow_infinity=False)
@@ -211,7 +214,8 @@ def test_measures_are_consistent(system, data, length):
     m = sing.measures(system, q, length)
     Js = sing.scaled_jacobian(system, q, length)
     assert np.linalg.det(Js) == pytest.approx(np.linalg.det(J), abs=1e-9)  # det is scale-free
-    assert m.manipulability == pytest.approx(math.sqrt(max(np.linalg.det(Js @ Js.T), 0.0)), abs=1e-7)
+    # squared: sqrt of a det near 0 turns its ~1e-15 rounding into ~1e-7 (a singular q, e.g. θ4 = ±90°)
+    assert m.manipulability ** 2 == pytest.approx(np.linalg.det(Js @ Js.T), rel=1e-9, abs=1e-12)
     assert m.manipulability == pytest.approx(abs(np.linalg.det(J)), abs=1e-9)
     assert m.condition >= 1.0 and m.sigma_min == pytest.approx(np.linalg.svd(Js, compute_uv=False)[-1])
     # Js = diag(I/L, I) J diag(L for prismatic): prismatic linear entries unchanged, revolute ones divided by L.
@@ -228,7 +232,7 @@ def test_typed_errors():
         sing.measures(PRESET, np.zeros(6), length=-1.0)
     with pytest.raises(carmkin.InvalidConfigurationError):
         sing.singular_factors(PRESET, np.zeros(5))
-    with pytest.raises(sing.SingularityError, match="unknown joint"):
+    with pytest.raises(sing.SingularityError, match="joint must be"):
         sing.joint_index("elbow")
     assert issubclass(sing.SingularityError, carmkin.CarmkinError)
 
@@ -260,3 +264,83 @@ def test_cli_check_and_errors(capsys):
     assert "PASS" in capsys.readouterr().out
     assert main(["singularity", "--pair", "wigwag,elbow", "--plot", "unused.png"]) == 2
     assert main(["singularity", "--q-mm-deg", "1,2,3"]) == 2
+
+
+# --- issue 19: singularity for any system ----------------------------------------------------------------
+MOTORIZED = carmkin.load_preset("siremobile-iso-c3d-motorized-table")
+
+
+def paper_det(system, q):
+    """|det| of Pinocchio's Jacobian columns of the paper's six joints (extra table joints held)."""
+    columns = [system.joint_names.index(n) for n in sing.JOINT_NAMES]
+    return abs(np.linalg.det(pinocchio_jacobian(system, q)[:, columns]))
+
+
+@pytest.mark.parametrize("system", [PRESET, MOTORIZED], ids=["plain", "motorized"])
+def test_joint_index_by_name_symbol_and_index(system):
+    for k, name in enumerate(system.joint_names):
+        assert sing.joint_index(name, system) == k == sing.joint_index(k, system)
+    assert sing.joint_index("theta4", system) == system.joint_names.index("angular")
+    for bad in (-1, system.nq, 17, True, 2.0, None, "elbow", b"wigwag", np.int64(-2)):
+        with pytest.raises(sing.SingularityError):  # before: -1 a Python alias, 17 accepted
+            sing.joint_index(bad, system)
+
+
+def test_motorized_curves_are_at_the_c_arms_joints():
+    # before: (2, 4) = (table_trendelenburg, table_height) were annotated with cases c and b, and the real
+    # angular/orbital pair got nothing
+    assert sing.singular_curves(MOTORIZED, (2, 4)) == []
+    curves = sing.singular_curves(MOTORIZED, ("angular", "orbital"))
+    angular = MOTORIZED.joint_names.index("angular")
+    assert sorted((c, j, round(v, 12)) for c, j, v in curves) == sorted(
+        [("b", angular, round(-math.pi / 2, 12)), ("b", angular, round(math.pi / 2, 12))])
+
+
+@pytest.mark.parametrize("system", [PRESET, MOTORIZED], ids=["plain", "motorized"])
+@settings(max_examples=15, deadline=None)
+@given(data=st.data())
+def test_curves_are_singular_for_pinocchio(system, data):
+    rng = np.random.default_rng(data.draw(st.integers(0, 2**32 - 1)))
+    q = system.lower + rng.random(system.nq) * (system.upper - system.lower)
+    curves = sing.singular_curves(system, ("wigwag", "angular"), q)
+    assert {c for c, _, _ in curves} == {"b", "c"}
+    for case, joint, value in curves:
+        qq = q.copy()
+        qq[joint] = value
+        assert paper_det(system, qq) < 1e-9, (case, system.joint_names[joint], value)
+        qq[joint] = value + 0.1
+        assert paper_det(system, qq) > 1e-6
+
+
+def test_case_c_curve_is_minus_gamma3_on_the_six_joint_chain():
+    for gamma3 in (-math.pi / 2, -0.3, 0.0, 1.1, math.pi):
+        system = PRESET.replace(setup=dataclasses.replace(PRESET.setup, gamma3=gamma3))
+        values = sorted(v for c, _, v in sing.singular_curves(system, (2, 4)) if c == "c")
+        expected = sorted(transforms.wrap_angle(v) for v in (-gamma3, math.pi - gamma3))
+        assert np.allclose(values, expected, atol=1e-12)
+
+
+def test_motorized_maps_by_name():
+    q = 0.5 * (MOTORIZED.lower + MOTORIZED.upper)
+    x, y, values = sing.measure_map(MOTORIZED, q, ("angular", "orbital"), n=5, measure="det")
+    assert values.shape == (5, 5)
+    qq = q.copy()
+    qq[MOTORIZED.joint_names.index("angular")], qq[MOTORIZED.joint_names.index("orbital")] = x[1], y[2]
+    assert values[2, 1] == pytest.approx(paper_det(MOTORIZED, qq), abs=1e-12)
+    x, y, values = sing.measure_map(MOTORIZED, q, (9, 10), n=4, measure="sigma-min")
+    assert np.all(np.isfinite(values)) and values.shape == (4, 4)
+    assert np.allclose(sing.grid_axis(MOTORIZED, "table_height", 3),
+                       np.linspace(MOTORIZED.joint_ranges[4].lower, MOTORIZED.joint_ranges[4].upper, 3))
+    with pytest.raises(sing.SingularityError):
+        sing.measure_map(MOTORIZED, q, (-1, 9))  # before: a Python alias for orbital
+
+
+@pytest.mark.parametrize("length", [1e300, 1e-320, 0.0, -1.0, float("nan"), float("inf"), "1", True, 1 + 0j])
+def test_absurd_characteristic_lengths_are_refused(length):
+    # before: NaN measures with leaked overflow warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(sing.SingularityError, match="characteristic length"):
+            sing.measures(PRESET, np.zeros(6), length=length)
+        with pytest.raises(sing.SingularityError, match="characteristic length"):
+            sing.measure_map(MOTORIZED, np.zeros(MOTORIZED.nq), (9, 10), n=3, measure="sigma-min", length=length)

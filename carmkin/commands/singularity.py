@@ -68,14 +68,18 @@ def configuration(system, text: str | None) -> np.ndarray:
     return parse_joints(text, system, JOINTS_FLAG)
 
 
-def pair_of(text: str) -> tuple[int, int]:
-    """Joint indices from 'name,name'."""
+def pair_of(text: str, system=None) -> tuple[int, int]:
+    """Joint indices of ``system`` from 'name,name' (names, symbols or indices)."""
     from carmkin import singularity as sing
+    from carmkin.errors import SingularityError
 
-    names = text.split(",")
+    names = [int(n) if n.strip().isdigit() else n for n in text.split(",")]
     if len(names) != 2:
         raise UsageError(f"--pair needs two joint names separated by a comma, got {text!r}")
-    return sing.joint_index(names[0]), sing.joint_index(names[1])
+    try:
+        return sing.joint_index(names[0], system), sing.joint_index(names[1], system)
+    except SingularityError as exc:
+        raise UsageError(f"--pair: {exc}") from None
 
 
 def run(args: argparse.Namespace) -> int:
@@ -88,7 +92,7 @@ def run(args: argparse.Namespace) -> int:
     if args.measure not in sing.MAP_MEASURES:
         raise UsageError(f"--measure {args.measure!r}: expected one of {', '.join(sing.MAP_MEASURES)}")
     plot = None if args.plot is None else plot_path(args.plot, "--plot")
-    pair = pair_of(args.pair)
+    pair = pair_of(args.pair, system)
     length = None if args.length_mm is None else args.length_mm / 1e3
     q = configuration(system, args.q_mm_deg)
     print(f"preset {system.name}: q = {format_joints(system, q, digits=4, sign=False)}")

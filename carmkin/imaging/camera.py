@@ -165,6 +165,9 @@ def homography_between(K, T1, T2, n=None, d=None) -> np.ndarray:
     (:func:`rotation_homography`), exact for every point when both views share the source position.
     """
     rel = relative_pose(T1, T2)
+    if n is None and d is not None:
+        raise ImagingError(f"plane distance d = {d!r} given without the plane normal n: give both, or neither "
+                           "for the rotation-only homography")
     if n is None:
         return rotation_homography(K, rel[:3, :3])
     n2, d2 = plane_in_frame(T2, n, d)

@@ -18,10 +18,11 @@ from __future__ import annotations
 import numpy as np
 
 from carmkin.imaging.camera import ImagingError, _intrinsics
+from carmkin.model.system import CArmSystem
 from carmkin.transforms import check_rigid_transform, inverse
+from carmkin.validation import instance, real_array, rigid_transform
 from carmkin.validation import intrinsics as check_intrinsics
 from carmkin.validation import projection_matrix as check_projection_matrix
-from carmkin.validation import real_array, rigid_transform
 
 #: Patient axes (Left, Posterior, Head) as direction cosines in the table frame, per patient position
 #: (DICOM PS3.17 FFF.1.2.2.2 table; codes of Patient Position (0018,5100)).
@@ -39,7 +40,7 @@ PATIENT_POSITIONS: dict[str, tuple[tuple[int, int, int], tuple[int, int, int], t
 
 def intrinsics(system) -> tuple[np.ndarray, tuple[int, int]]:
     """``(K, (columns, rows))``: the intrinsic matrix (3, 3) in pixels and the image size of ``system``."""
-    carm = system.carm
+    carm = instance(system, CArmSystem, "system", error=ImagingError).carm
     return carm.intrinsics(), (int(carm.detector_columns), int(carm.detector_rows))
 
 
@@ -74,6 +75,8 @@ def projection_matrix(system, q, patient=None) -> np.ndarray:
     """
     K, _ = intrinsics(system)
     T = system.fk(q)
+    if T.ndim != 2:
+        raise ImagingError(f"q must be one configuration ({system.nq},), got shape {np.shape(q)}")
     if patient is not None:
         T_patient = patient_pose(patient) if isinstance(patient, str) else check_rigid_transform(
             patient, "patient pose")

@@ -40,12 +40,14 @@ from carmkin.errors import (
     SimulatorConventionError,  # noqa: F401 (defined there, raised here)
 )
 from carmkin.model.kinematics import check_configuration
+from carmkin.model.system import CArmSystem
 from carmkin.transforms import check_rigid_transform, inverse
 from carmkin.validation import (
     MAX_DISTANCE,
     MAX_FOCAL_PX,
     MIN_DISTANCE,
     distance,
+    instance,
     integer,
     intrinsics,
     real_array,
@@ -262,7 +264,7 @@ def deepdrr_mobile_carm(system, q) -> MobileCArmState:
     MobileCArm does not model. DeepDRR clips α to [−40°, 110°] and β to ±225° by default: pass
     ``min_alpha``/``max_alpha`` wide enough.
     """
-    carm = system.carm
+    carm = instance(system, CArmSystem, "system", error=SimulatorConventionError).carm
     if abs(carm.a1) > 0:
         raise SimulatorConventionError(
             f"DeepDRR's MobileCArm has no offset between its two rotation axes: a1 must be 0, got {carm.a1 * MM} mm")

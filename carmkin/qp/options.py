@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -44,6 +44,10 @@ class QPIKOptions:
     progress_ratio: float = 0.9
 
     def __post_init__(self) -> None:
+        for f in fields(self):  # numbers only: a bool, a string or a complex is refused, naming the field
+            value = getattr(self, f.name)
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+                raise QPIKError(f"QPIKOptions.{f.name} must be a real number, got {value!r}")
         positive = ("position_tolerance", "angle_tolerance", "max_step", "influence_distance", "collision_gain",
                     "stall_step", "error_damping", "damping")
         for name in positive:
@@ -61,3 +65,31 @@ class QPIKOptions:
                             f"{self.progress_window}, {self.progress_ratio}")
         if int(self.max_iterations) < 1:
             raise QPIKError(f"QPIKOptions.max_iterations must be >= 1, got {self.max_iterations}")
+
+
+@dataclass(frozen=True)
+class SearchOptions:
+    """Which steps :func:`carmkin.qp_ik.solve` runs and which seeds it tries.
+
+    ``closed_form``: try the closed form first (6-DOF, or single axis on a motorized table); ``qp``: run the
+    QP when no branch is accepted; ``random_seeds``: uniform draws over the joint box tried last (``None``:
+    :data:`carmkin.qp.prepared.DEFAULT_RANDOM_SEEDS`), drawn with numpy seed ``rng_seed``.
+    """
+
+    closed_form: bool = True
+    qp: bool = True
+    random_seeds: int | None = None
+    rng_seed: int = 0
+
+    def __post_init__(self) -> None:
+        for name in ("closed_form", "qp"):
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
+                raise QPIKError(f"SearchOptions.{name} must be True or False, got {getattr(self, name)!r}")
+        for name, low in (("random_seeds", 0), ("rng_seed", 0)):
+            value = getattr(self, name)
+            if value is None and name == "random_seeds":
+                continue
+            if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < low:
+                raise QPIKError(f"SearchOptions.{name} must be an integer >= {low}, got {value!r}")
+        object.__setattr__(self, "closed_form", bool(self.closed_form))
+        object.__setattr__(self, "qp", bool(self.qp))

@@ -7,6 +7,7 @@ seed value.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
@@ -17,10 +18,44 @@ from .options import QPIKError
 PREFERENCE_RATIO = 100.0
 
 
+@dataclass(frozen=True)
+class Redundancy:
+    """How a redundant chain spends its extra joints: ``weights`` (:func:`joint_weights`: ``None``, (nq,) or a
+    dict by joint name), ``prefer`` (``"table"``, ``"carm"`` or ``None``), ``free`` (names of the joints that
+    may move; ``None``: all). Checked against a system when a solver is prepared."""
+
+    weights: object = None
+    prefer: str | None = None
+    free: tuple[str, ...] | None = None
+
+    def __post_init__(self) -> None:
+        if self.prefer is not None and self.prefer not in ("table", "carm"):
+            raise QPIKError(f"prefer must be 'table', 'carm' or None, got {self.prefer!r}")
+        if self.free is not None:
+            if (isinstance(self.free, (str, bytes, dict)) or not hasattr(self.free, "__iter__")
+                    or not all(isinstance(n, str) for n in self.free)):
+                raise QPIKError(f"free must be a sequence of joint names, got {self.free!r}")
+            object.__setattr__(self, "free", tuple(self.free))
+        if self.weights is not None and not isinstance(self.weights, dict):
+            if isinstance(self.weights, (str, bytes)):
+                raise QPIKError(f"joint_weights must be numbers or a dict by joint name, got {self.weights!r}")
+            try:  # a tuple, so that the options hash; the values are checked by check_weights
+                object.__setattr__(self, "weights", tuple(np.ravel(np.asarray(self.weights, dtype=object)).tolist()))
+            except (TypeError, ValueError):
+                raise QPIKError(f"joint_weights must be numbers or a dict by joint name, got {self.weights!r}") from None
+
+    def __hash__(self) -> int:
+        weights = tuple(sorted(self.weights.items())) if isinstance(self.weights, dict) else self.weights
+        return hash((weights, self.prefer, self.free))
+
+
 def check_weights(weights, nv: int) -> np.ndarray:
     """``weights`` as a float array (nv,) of finite positive numbers, else :class:`QPIKError`."""
-    w = np.asarray(weights, dtype=float)
-    if w.shape != (nv,) or not np.all(np.isfinite(w)) or np.any(w <= 0):
+    try:
+        w = np.asarray(weights, dtype=float)
+    except (TypeError, ValueError):
+        raise QPIKError(f"joint_weights must be {nv} finite positive numbers, got {weights!r}") from None
+    if any(isinstance(v, (bool, np.bool_)) for v in np.ravel(np.asarray(weights, dtype=object))) or w.shape != (nv,) or not np.all(np.isfinite(w)) or np.any(w <= 0):
         raise QPIKError(f"joint_weights must be {nv} finite positive numbers, got {weights!r}")
     return w
 
@@ -45,10 +80,9 @@ def joint_weights(system, weights=None, prefer: str | None = None) -> np.ndarray
         unknown = set(weights) - set(names)
         if unknown:
             raise QPIKError(f"joint_weights names unknown joint(s) {sorted(unknown)}; joints: {', '.join(names)}")
-        w = np.array([float(weights.get(n, 1.0)) for n in names])
+        w = check_weights([weights.get(n, 1.0) for n in names], len(names))
     else:
-        w = np.asarray(weights, dtype=float)
-    w = check_weights(w, len(names))
+        w = check_weights(weights, len(names))
     if prefer is None:
         return w
     if prefer not in ("table", "carm"):

@@ -131,7 +131,9 @@ class SolveResult:
     (:class:`Path`); ``seed``: the branch or seed name of ``q``; ``failure`` (:class:`Failure`, ``None`` on
     success) with ``closed_form_error`` (message of a closed form that refused the pose); ``validity``: the
     :class:`~carmkin.robot.validity.ValidityReport` of ``q`` (``None`` for NaN); ``closed_form``: the
-    analytic result (or ``None``); ``branch_reports`` (:class:`BranchReport`); ``attempts``: the QP runs.
+    analytic result (or ``None``); ``branch_reports`` (:class:`BranchReport`); ``attempts``: the QP runs;
+    ``pose_correction``: ``‖T_rigid − T‖_F`` by which a nearly rigid 4x4 target was projected onto the
+    nearest rigid transform before solving (0 for a rigid target or an axis/aim target).
     """
 
     q: np.ndarray
@@ -144,6 +146,7 @@ class SolveResult:
     branch_reports: tuple[BranchReport, ...] = ()
     attempts: tuple[QPIKResult, ...] = ()
     closed_form_error: str | None = None
+    pose_correction: float = 0.0
 
     @property
     def reasons(self) -> tuple[str, ...]:

@@ -16,6 +16,7 @@ import pinocchio as pin
 
 from carmkin.errors import CarmkinError
 from carmkin.transforms import check_rigid_transform, rotation_between
+from carmkin.validation import real_array
 
 from .options import SOURCE_FRAME, QPIKError
 from .tasks import AimTask, AxisTask, FrameTask, PoseTask
@@ -31,6 +32,14 @@ class AxisTarget:
     position: tuple[float, float, float]
     direction: tuple[float, float, float]
 
+    def __post_init__(self) -> None:
+        position = real_array(self.position, "AxisTarget.position", (3,), error=QPIKError, unit="m")
+        direction = real_array(self.direction, "AxisTarget.direction", (3,), error=QPIKError)
+        if not np.linalg.norm(direction) > AIM_POINT_TOLERANCE:
+            raise QPIKError(f"AxisTarget.direction must be a non-zero 3-vector, got {self.direction!r}")
+        object.__setattr__(self, "position", tuple(position.tolist()))
+        object.__setattr__(self, "direction", tuple(direction.tolist()))
+
 
 @dataclass(frozen=True)
 class AimTarget:
@@ -38,6 +47,14 @@ class AimTarget:
 
     point: tuple[float, float, float]
     distance_range: tuple[float, float]
+
+    def __post_init__(self) -> None:
+        point = real_array(self.point, "AimTarget.point", (3,), error=QPIKError, unit="m")
+        lo, hi = real_array(self.distance_range, "AimTarget.distance_range", (2,), error=QPIKError, unit="m").tolist()
+        if not 0.0 <= lo <= hi:
+            raise QPIKError(f"AimTarget.distance_range must be (lower, upper) with 0 <= lower <= upper (m), got {(lo, hi)}")
+        object.__setattr__(self, "point", tuple(point.tolist()))
+        object.__setattr__(self, "distance_range", (lo, hi))
 
 
 def make_task(model: pin.Model, target, frame: str = SOURCE_FRAME) -> FrameTask:

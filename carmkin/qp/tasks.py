@@ -9,6 +9,7 @@ lengths in metres, angles in radians. All tasks read ``data`` after
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -88,16 +89,39 @@ class PoseTask(FrameTask):
         """Replace the target pose (4x4, root frame)."""
         self.target = pin.SE3(check_rigid_transform(target, "target pose"))
 
+    @property
+    def target(self) -> pin.SE3:
+        """The target pose (``pin.SE3``, root frame)."""
+        return self._target
+
+    @target.setter
+    def target(self, value: pin.SE3) -> None:
+        self._target = value
+        self._target_rows = value.homogeneous.tolist()
+
     def residual(self, model, data):
         tMf = self.target.actInv(data.oMf[self.frame_id])
         J = pin.Jlog6(tMf) @ pin.getFrameJacobian(model, data, self.frame_id, pin.LOCAL)
         return J, pin.log6(tMf).vector
 
     def errors(self, data, position_tolerance, angle_tolerance):
-        oMf = data.oMf[self.frame_id]
-        position = float(np.linalg.norm(oMf.translation - self.target.translation))
-        angle = float(np.linalg.norm(pin.log3(self.target.rotation.T @ oMf.rotation)))
+        position, angle = pose_errors(data.oMf[self.frame_id].homogeneous.tolist(), self._target_rows)
         return TaskErrors(position, angle, position <= position_tolerance and angle <= angle_tolerance)
+
+
+def pose_errors(a: list, b: list) -> tuple[float, float]:
+    """``(|p_a − p_b| m, angle of R_bᵀ R_a rad)`` of two poses given as nested lists (4x4 rows), written out on
+    floats (the check of every closed-form branch); the angle as atan2(|skew part|, (trace − 1) / 2),
+    accurate over the whole range (as :func:`carmkin.transforms.rotation_angle`)."""
+    (a0, a1, a2, ap), (a3, a4, a5, aq), (a6, a7, a8, ar) = a[0], a[1], a[2]
+    (b0, b1, b2, bp), (b3, b4, b5, bq), (b6, b7, b8, br) = b[0], b[1], b[2]
+    position = math.sqrt((ap - bp) ** 2 + (aq - bq) ** 2 + (ar - br) ** 2)
+    m00, m11, m22 = b0 * a0 + b3 * a3 + b6 * a6, b1 * a1 + b4 * a4 + b7 * a7, b2 * a2 + b5 * a5 + b8 * a8
+    m21, m12 = b2 * a1 + b5 * a4 + b8 * a7, b1 * a2 + b4 * a5 + b7 * a8
+    m02, m20 = b0 * a2 + b3 * a5 + b6 * a8, b2 * a0 + b5 * a3 + b8 * a6
+    m10, m01 = b1 * a0 + b4 * a3 + b7 * a6, b0 * a1 + b3 * a4 + b6 * a7
+    sine = 0.5 * math.sqrt((m21 - m12) ** 2 + (m02 - m20) ** 2 + (m10 - m01) ** 2)
+    return position, math.atan2(sine, 0.5 * (m00 + m11 + m22 - 1.0))
 
 
 class FrameAxisTask(FrameTask):

@@ -19,16 +19,25 @@ done here. Classic solvers (Tsai–Lenz, Park, Daniilidis; ``cv2.calibrateHandEy
 the rotation axes of the motions, which pure translations do not have, so they are degenerate; the
 origin offset of the marker in the table frame is unobservable and is set by convention (the seed puts
 the table origin at the marker origin).
+
+**Refusal.** Kabsch returns *a* rotation for any input — the identity, or an arbitrary one, for a marker
+that never moved. So the camera's measured displacements ``p_i − p_0`` must (1) span two directions, like
+the commanded ones, and (2) match the commanded ``d_i − d_0`` in length, and the fitted rotation must map
+one onto the other, each to :data:`LENGTH_TOLERANCE` plus :data:`LENGTH_RELATIVE` of the move; else
+:class:`CalibrationError` naming the worst position. :func:`calibrate` returns the residuals with the
+rotation.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
 from carmkin.errors import (
     CalibrationError,  # noqa: F401 (defined there, raised here)
     )
-from carmkin.validation import real_array
+from carmkin.validation import distance, point_array, real_array, real_scalar, rotation
 
 #: The centred displacements must span a plane: their second singular value must exceed this fraction of
 #: the first (translations along a single direction leave the rotation about it undetermined).
@@ -36,11 +45,17 @@ SPAN_TOLERANCE = 1e-3
 #: A move counts as along one table axis when its other components are below this fraction of its length.
 AXIS_TOLERANCE = 1e-6
 METHODS = ("svd", "lines")
+#: A measured displacement may differ from the commanded one (in length, and after the fitted rotation) by
+#: this much (m) plus :data:`LENGTH_RELATIVE` of the commanded move: 5 mm is five times the camera's
+#: position sd across the line of sight at the working distance with 0.2 px corner noise (~1 mm).
+LENGTH_TOLERANCE = 0.005
+#: The relative part of the tolerance: a 2 % scale error (e.g. a focal length 2 % off) is still accepted.
+LENGTH_RELATIVE = 0.02
 
 
 def _check(positions, displacements) -> tuple[np.ndarray, np.ndarray]:
-    P = real_array(positions, "camera_positions_marker", (None, 3), error=CalibrationError, unit="m")
-    D = real_array(displacements, "camera_displacements_table", (None, 3), error=CalibrationError, unit="m")
+    P = point_array(positions, "camera_positions_marker", error=CalibrationError, unit="m, marker frame")
+    D = point_array(displacements, "camera_displacements_table", error=CalibrationError, unit="m, table frame")
     if D.shape != P.shape:
         raise CalibrationError(f"camera_displacements_table must have shape {P.shape} like the positions, got {D.shape}")
     if len(P) < 3:
@@ -50,6 +65,38 @@ def _check(positions, displacements) -> tuple[np.ndarray, np.ndarray]:
         raise CalibrationError("the table displacements must span at least two directions (§3.3.3: e.g. "
                                "forward-backward and up-down); along one line the rotation about it is unknown")
     return P, D
+
+
+def _tolerance(D: np.ndarray, tolerance: float) -> np.ndarray:
+    return tolerance + LENGTH_RELATIVE * np.linalg.norm(D - D[0], axis=1)
+
+
+def _check_seen(P: np.ndarray, D: np.ndarray, tolerance: float) -> None:
+    """The camera saw the commanded moves: its displacements span two directions and match in length."""
+    s = np.linalg.svd(P - P.mean(axis=0), compute_uv=False)
+    if s[0] == 0.0 or s[1] <= SPAN_TOLERANCE * s[0]:
+        raise CalibrationError("camera_positions_marker do not span two directions: the camera saw the marker "
+                               f"{'still' if s[0] == 0.0 else 'move along one line only'} while the table moved "
+                               "along two (a marker out of view, a stale pose?)")
+    measured = np.linalg.norm(P - P[0], axis=1)
+    commanded = np.linalg.norm(D - D[0], axis=1)
+    excess = np.abs(measured - commanded) - _tolerance(D, tolerance)
+    if np.any(excess > 0):
+        i = int(np.argmax(excess))
+        raise CalibrationError(f"camera_positions_marker[{i}] moved {1e3 * measured[i]:.2f} mm from the first "
+                               f"position where the table was moved {1e3 * commanded[i]:.2f} mm (tolerance "
+                               f"{1e3 * _tolerance(D, tolerance)[i]:.2f} mm): the camera did not see the "
+                               "commanded move (a still marker, a wrong pose or a wrong move list)")
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """Result of :func:`calibrate`: ``tRm`` (3, 3) with ``P_table = tRm @ P_marker``; ``residuals`` (N, 3) m:
+    ``tRm (p_i − p_0) − (d_i − d_0)`` in the table frame; ``rms`` (m) of their norms."""
+
+    tRm: np.ndarray
+    residuals: np.ndarray
+    rms: float
 
 
 def _align(table_vectors: np.ndarray, marker_vectors: np.ndarray) -> np.ndarray:
@@ -91,45 +138,75 @@ def _axis_directions(P: np.ndarray, D: np.ndarray) -> tuple[list[np.ndarray], li
 def rotation_angle(R_a, R_b) -> float:
     """Angle (rad) of ``R_aᵀ R_b`` from ``||R_aᵀ R_b − I||_F = 2√2 sin(θ/2)``: accurate for tiny angles,
     where ``acos((tr − 1) / 2)`` loses half the digits."""
-    d = np.linalg.norm(np.asarray(R_a, float).T @ np.asarray(R_b, float) - np.eye(3)) / (2.0 * np.sqrt(2.0))
+    R_a, R_b = rotation(R_a, "R_a", error=CalibrationError), rotation(R_b, "R_b", error=CalibrationError)
+    d = np.linalg.norm(R_a.T @ R_b - np.eye(3)) / (2.0 * np.sqrt(2.0))
     return float(2.0 * np.arcsin(min(1.0, d)))
 
 
-def calibrate_table(camera_positions_marker, camera_displacements_table, method: str = "svd") -> np.ndarray:
-    """The rotation ``tRm`` (3, 3) with ``P_table = tRm @ P_marker``.
+def calibrate(camera_positions_marker, camera_displacements_table, method: str = "svd",
+              tolerance: float = LENGTH_TOLERANCE) -> Calibration:
+    """The rotation ``tRm`` with its residuals (:class:`Calibration`), or :class:`CalibrationError`.
 
     ``camera_positions_marker`` (N, 3): the camera positions estimated in the marker frame (m);
     ``camera_displacements_table`` (N, 3): the same positions' displacements from the first, in the table
-    frame (m) — the opposite of the known table translations. N ≥ 3, spanning two directions at least.
-    ``method``: ``"svd"`` (Kabsch on all displacements) or ``"lines"`` (a line per table axis).
+    frame (m) — the opposite of the known table translations. N ≥ 3, both spanning two directions at least,
+    matching in length and, after the rotation, in direction to ``tolerance`` (m) + :data:`LENGTH_RELATIVE`
+    of each move. ``method``: ``"svd"`` (Kabsch on all displacements) or ``"lines"`` (a line per table axis).
     """
     P, D = _check(camera_positions_marker, camera_displacements_table)
+    tolerance = real_scalar(tolerance, "tolerance", error=CalibrationError, low=0.0, unit="m")
+    if not isinstance(method, str) or method not in METHODS:
+        raise CalibrationError(f"method must be one of {METHODS}, got {method!r}")
+    _check_seen(P, D, tolerance)
     if method == "svd":
-        return _align(D - D.mean(axis=0), P - P.mean(axis=0))
-    if method == "lines":
+        tRm = _align(D - D.mean(axis=0), P - P.mean(axis=0))
+    else:
         fitted, axes = _axis_directions(P, D)
-        return _align(np.array(axes), np.array(fitted))
-    raise CalibrationError(f"method must be one of {METHODS}, got {method!r}")
+        tRm = _align(np.array(axes), np.array(fitted))
+    residuals = (P - P[0]) @ tRm.T - (D - D[0])
+    norms = np.linalg.norm(residuals, axis=1)
+    excess = norms - _tolerance(D, tolerance)
+    if np.any(excess > 0):
+        i = int(np.argmax(excess))
+        raise CalibrationError(f"no rotation maps the camera's displacements onto the table's: position {i} is "
+                               f"{1e3 * norms[i]:.2f} mm off after the fit (tolerance "
+                               f"{1e3 * _tolerance(D, tolerance)[i]:.2f} mm)")
+    return Calibration(tRm, residuals, float(np.sqrt(np.mean(norms**2))))
+
+
+def calibrate_table(camera_positions_marker, camera_displacements_table, method: str = "svd",
+                    tolerance: float = LENGTH_TOLERANCE) -> np.ndarray:
+    """The rotation ``tRm`` (3, 3) with ``P_table = tRm @ P_marker``: :func:`calibrate`'s, without the
+    residuals (same arguments, same refusals)."""
+    return calibrate(camera_positions_marker, camera_displacements_table, method, tolerance).tRm
 
 
 def residual_rms(tRm, camera_positions_marker, camera_displacements_table) -> float:
     """RMS (m) of ``tRm (p_i − p̄) − (d_i − d̄)`` over the positions: the fit's consistency."""
+    R = rotation(tRm, "tRm", error=CalibrationError)
     P, D = _check(camera_positions_marker, camera_displacements_table)
-    r = (P - P.mean(axis=0)) @ np.asarray(tRm, float).T - (D - D.mean(axis=0))
+    r = (P - P.mean(axis=0)) @ R.T - (D - D.mean(axis=0))
     return float(np.sqrt(np.mean(np.sum(r**2, axis=1))))
+
+
+def _count(value, name: str, low: int) -> int:
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < low:
+        raise CalibrationError(f"{name} must be an integer >= {low}, got {value!r}")
+    return int(value)
 
 
 def calibration_moves(positions: int, span: float, axes=(2, 1)) -> np.ndarray:
     """Camera displacements (positions, 3) in the table frame for a calibration run: the first position,
     then moves spread evenly up to ``span`` (m) along each of ``axes`` in turn (table-frame axis indices;
     default Z0, the translation, and Y0, the height), each from the first position."""
-    if positions < 3:
-        raise CalibrationError(f"positions must be >= 3, got {positions}")
-    if not (np.isfinite(span) and span > 0):
-        raise CalibrationError(f"span must be finite and > 0 (m), got {span}")
-    axes = tuple(axes)
-    if len(axes) < 2 or any(a not in (0, 1, 2) for a in axes):
+    positions = _count(positions, "positions", 3)
+    span = distance(span, "span", error=CalibrationError)
+    if isinstance(axes, (str, bytes)) or not hasattr(axes, "__iter__"):
         raise CalibrationError(f"axes must name at least two table axes among 0, 1, 2, got {axes!r}")
+    axes = tuple(axes)
+    if len(axes) < 2 or any(isinstance(a, (bool, np.bool_)) or not isinstance(a, (int, np.integer))
+                            or a not in (0, 1, 2) for a in axes) or len(set(axes)) != len(axes):
+        raise CalibrationError(f"axes must name at least two different table axes among 0, 1, 2, got {axes!r}")
     moves = np.zeros((positions, 3))
     per_axis = np.array_split(np.arange(1, positions), len(axes))
     for axis, rows in zip(axes, per_axis):
@@ -148,19 +225,23 @@ def error_curve(noise_levels, position_counts, trials: int = 200, span: float = 
     """
     from scipy.spatial.transform import Rotation
 
-    if int(trials) < 1:
-        raise CalibrationError(f"trials must be >= 1, got {trials}")
+    trials, seed = _count(trials, "trials", 1), _count(seed, "seed", 0)
+    noise_levels = real_array(noise_levels, "noise_levels", (None,), error=CalibrationError, unit="m")
+    if np.any(noise_levels < 0):
+        raise CalibrationError(f"noise_levels must be >= 0 (m), got {noise_levels.tolist()}")
+    if isinstance(position_counts, (str, bytes, dict)) or not hasattr(position_counts, "__iter__"):
+        raise CalibrationError(f"position_counts must be a list of integers >= 3, got {position_counts!r}")
+    counts = [_count(c, "position_counts[]", 3) for c in position_counts]
     rng = np.random.default_rng(seed)
-    out = np.zeros((len(noise_levels), len(position_counts), 2))
+    out = np.zeros((len(noise_levels), len(counts), 2))
     for i, sigma in enumerate(noise_levels):
-        if not (np.isfinite(sigma) and sigma >= 0):
-            raise CalibrationError(f"noise levels must be finite and >= 0 (m), got {sigma}")
-        for j, count in enumerate(position_counts):
-            moves = calibration_moves(int(count), span, axes)
+        for j, count in enumerate(counts):
+            moves = calibration_moves(count, span, axes)
             errors = []
-            for R in Rotation.random(int(trials), random_state=rng).as_matrix():
+            for R in Rotation.random(trials, random_state=rng).as_matrix():
                 measured = moves @ R + rng.normal(0.0, sigma, moves.shape)
-                E = calibrate_table(measured, moves, method=method)
+                # the simulated noise is the point of the curve: the tolerance grows with it (10 σ)
+                E = calibrate_table(measured, moves, method=method, tolerance=LENGTH_TOLERANCE + 10 * sigma)
                 errors.append(rotation_angle(E, R))
             out[i, j] = np.median(errors), np.percentile(errors, 95)
     return out

@@ -17,7 +17,9 @@ from carmkin.errors import (
     CameraError,  # noqa: F401 (defined there, raised here)
     )
 from carmkin.transforms import check_rigid_transform, inverse
+from carmkin.validation import intrinsics, point_array, real_scalar
 
+from . import _checks
 from .pattern import MarkerBoard
 
 #: A visible marker's corners lie at least this far inside the image edges (px).
@@ -37,23 +39,20 @@ class CornerView:
         return len(self.ids)
 
 
-def check_intrinsics(K) -> np.ndarray:
-    """``K`` as a float (3, 3) upper-triangular pinhole matrix with positive focal lengths, else an error."""
-    K = np.asarray(K, dtype=float)
-    if K.shape != (3, 3) or not np.all(np.isfinite(K)) or K[0, 0] <= 0 or K[1, 1] <= 0 \
-            or np.any(K[2] != (0.0, 0.0, 1.0)) or K[1, 0] != 0.0:
-        raise CameraError(f"K must be a finite 3x3 pinhole matrix [[fx, s, cx], [0, fy, cy], [0, 0, 1]] with "
-                          f"fx, fy > 0 (px), got {np.array2string(K, precision=4)}")
-    return K
+def check_intrinsics(K, name: str = "K") -> np.ndarray:
+    """``K`` as a float (3, 3) pinhole matrix ``[[fx, s, cx], [0, fy, cy], [0, 0, 1]]`` (px), else a
+    :class:`CameraError`: :func:`carmkin.validation.intrinsics`, the one way in for intrinsics."""
+    return intrinsics(K, name, error=CameraError)
 
 
 def project_points(K, T_frame_camera, points) -> tuple[np.ndarray, np.ndarray]:
     """Pixels (N, 2) and depths (N,) (m) of ``points`` (N, 3) of a frame seen by a camera at ``T_frame_camera``."""
     T = check_rigid_transform(T_frame_camera, "T_frame_camera")
-    Xc = (np.asarray(points, dtype=float) - T[:3, 3]) @ T[:3, :3]
+    K = check_intrinsics(K)
+    Xc = (point_array(points, "points", error=CameraError) - T[:3, 3]) @ T[:3, :3]
     depth = Xc[:, 2]
     with np.errstate(divide="ignore", invalid="ignore"):
-        pixels = (Xc @ check_intrinsics(K).T)[:, :2] / depth[:, None]
+        pixels = (Xc @ K.T)[:, :2] / depth[:, None]
     return pixels, depth
 
 
@@ -62,6 +61,7 @@ def visible_corners(board: MarkerBoard, K, image_size, T_marker_camera) -> Corne
 
     ``image_size`` = (columns, rows) in px. Empty when the camera sees the back of the board.
     """
+    _checks.instance(board, MarkerBoard, "board", CameraError)
     columns, rows = check_image_size(image_size)
     T = check_rigid_transform(T_marker_camera, "T_marker_camera")
     corners = board.corners
@@ -78,8 +78,9 @@ def visible_corners(board: MarkerBoard, K, image_size, T_marker_camera) -> Corne
 
 def with_noise(view: CornerView, sigma_px: float, rng: np.random.Generator) -> CornerView:
     """The view with independent Gaussian noise of ``sigma_px`` (px) on each corner coordinate."""
-    if not (np.isfinite(sigma_px) and sigma_px >= 0):
-        raise CameraError(f"corner noise must be finite and >= 0 (px), got {sigma_px}")
+    _checks.instance(view, CornerView, "view", CameraError)
+    sigma_px = real_scalar(sigma_px, "sigma_px", error=CameraError, low=0.0, unit="px")
+    _checks.generator(rng, "rng", CameraError)
     noisy = view.image_points + rng.normal(0.0, sigma_px, view.image_points.shape) if sigma_px else view.image_points
     return CornerView(view.ids, view.object_points, noisy)
 

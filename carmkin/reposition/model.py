@@ -16,8 +16,14 @@ import dataclasses
 
 import numpy as np
 
+from carmkin.errors import (
+    RepositionModelError,  # noqa: F401 (defined there, raised here)
+)
 from carmkin.model.params import TableSetup
-from carmkin.transforms import check_rigid_transform, inverse, translation
+from carmkin.transforms import inverse, translation
+from carmkin.validation import real_array, real_scalar, rigid_transform, rotation
+
+from . import _checks
 
 #: Central-difference step of the linear noise propagation (rad for rotations, m for translations).
 PROPAGATION_STEP = 1e-6
@@ -28,14 +34,21 @@ def carm_kinematics(system, q) -> np.ndarray:
 
     Independent of the table setup: computed from the system's FK with the table contribution removed.
     """
-    q = np.asarray(q, dtype=float)
+    system = _checks.system(system, "system", RepositionModelError)
+    q = _checks.joints(system, q, "q", RepositionModelError)
     _, q_table = system.split(q)
-    return inverse(base_pose(system, q[0], q_table)) @ system.fk(q)
+    return inverse(_base_pose(system, q[0], q_table)) @ system.fk(q)
 
 
 def base_pose(system, d0: float, q_table) -> np.ndarray:
     """``Tz(d0) · E(q_table) · K`` (4, 4): the C-arm base frame in the table frame for the table joints."""
-    q_table = np.asarray(q_table, dtype=float)
+    system = _checks.system(system, "system", RepositionModelError)
+    d0 = real_scalar(d0, "d0", error=RepositionModelError, unit="m")
+    q_table = real_array(q_table, "q_table", (len(system.table.joints),), error=RepositionModelError, unit="m, rad")
+    return _base_pose(system, d0, q_table)
+
+
+def _base_pose(system, d0: float, q_table: np.ndarray) -> np.ndarray:
     E = system.table_motion(q_table) if q_table.size else np.eye(4)
     return translation(z=d0) @ E @ system.carm_base_pose
 
@@ -43,8 +56,9 @@ def base_pose(system, d0: float, q_table) -> np.ndarray:
 def setup_from_pose(system, T_table_source, q_readings) -> TableSetup:
     """Eq. 4.3: the table setup from the measured source pose ``T_table_source`` (4, 4, table frame) and the
     joint readings ``q_readings`` (nq,) at the moment of the measurement (m, rad)."""
-    T = check_rigid_transform(T_table_source, "T_table_source")
-    q = np.asarray(q_readings, dtype=float)
+    system = _checks.system(system, "system", RepositionModelError)
+    T = rigid_transform(T_table_source, "T_table_source", error=RepositionModelError)
+    q = _checks.joints(system, q_readings, "q_readings", RepositionModelError)
     _, q_table = system.split(q)
     E = system.table_motion(q_table) if q_table.size else np.eye(4)
     K = inverse(E) @ translation(z=-q[0]) @ T @ inverse(carm_kinematics(system, q))
@@ -53,14 +67,16 @@ def setup_from_pose(system, T_table_source, q_readings) -> TableSetup:
 
 def model_from_pose(system, T_table_source, q_readings):
     """``system`` with the setup of :func:`setup_from_pose`: the model the guidance plans with."""
-    return system.replace(setup=setup_from_pose(system, T_table_source, q_readings))
+    setup = setup_from_pose(system, T_table_source, q_readings)  # checks the arguments first
+    return system.replace(setup=setup)
 
 
 def frozen_table_system(system, q_table):
     """A plain 6-DOF system (d0 + the C-arm's joints) with a motorized table's extra joints held at
     ``q_table``: ``Tz(d0) · (E K) · B(q5)`` is the plain chain with base pose ``E K``. The system itself
     when it has no extra joints. Used to read the C-arm's joints off a measured pose by closed-form IK."""
-    q_table = np.asarray(q_table, dtype=float)
+    system = _checks.system(system, "system", RepositionModelError)
+    q_table = real_array(q_table, "q_table", (len(system.table.joints),), error=RepositionModelError, unit="m, rad")
     if not system.table.joints:
         return system
     K = system.table_motion(q_table) @ system.carm_base_pose
@@ -77,7 +93,9 @@ def setup_jacobian(system, T_table_source, q_readings) -> np.ndarray:
     ``R = exp([ω]) R̂``, ``p = p̂ + δp`` in the table frame (the convention of :mod:`.pose`)."""
     from scipy.spatial.transform import Rotation
 
-    T = check_rigid_transform(T_table_source, "T_table_source")
+    system = _checks.system(system, "system", RepositionModelError)
+    T = rigid_transform(T_table_source, "T_table_source", error=RepositionModelError)
+    q_readings = _checks.joints(system, q_readings, "q_readings", RepositionModelError)
     J = np.zeros((6, 6))
     for k in range(6):
         columns = []
@@ -97,12 +115,14 @@ def setup_jacobian(system, T_table_source, q_readings) -> np.ndarray:
 def setup_covariance(system, T_table_source, q_readings, pose_covariance) -> np.ndarray:
     """Covariance (6, 6) of (γ1, γ2, γ3 in rad, D1, D2, D3 in m) from the pose covariance (6, 6) over
     (ω rad, δp m) in the table frame, by linear propagation ``J Σ Jᵀ`` (:func:`setup_jacobian`)."""
+    covariance = real_array(pose_covariance, "pose_covariance", (6, 6), error=RepositionModelError)
     J = setup_jacobian(system, T_table_source, q_readings)
-    return J @ np.asarray(pose_covariance, dtype=float) @ J.T
+    return J @ covariance @ J.T
 
 
 def to_table_frame(covariance_marker, tRm) -> np.ndarray:
     """A pose covariance over (ω, δp) in the marker frame expressed in the table frame (both blocks rotated)."""
+    covariance = real_array(covariance_marker, "covariance_marker", (6, 6), error=RepositionModelError)
     R6 = np.zeros((6, 6))
-    R6[:3, :3] = R6[3:, 3:] = np.asarray(tRm, dtype=float)
-    return R6 @ np.asarray(covariance_marker, dtype=float) @ R6.T
+    R6[:3, :3] = R6[3:, 3:] = rotation(tRm, "tRm", error=RepositionModelError)
+    return R6 @ covariance @ R6.T

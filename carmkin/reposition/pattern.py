@@ -15,7 +15,6 @@ repositioning, so the choice of origin does not change any error.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -26,6 +25,7 @@ from carmkin.errors import (
 )
 from carmkin.extras import require
 from carmkin.transforms import check_rigid_transform
+from carmkin.validation import distance, real_scalar, rotation
 
 #: Square size and gap of the seed's pattern (Fig. 3.2 caption), m.
 SEED_MARKER_LENGTH = 0.0165
@@ -52,9 +52,9 @@ class MarkerBoard:
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
                 raise PatternError(f"MarkerBoard.{name} must be a positive integer, got {value!r}")
         for name in ("marker_length", "separation"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise PatternError(f"MarkerBoard.{name} must be a positive length (m), got {value!r}")
+            distance(getattr(self, name), f"MarkerBoard.{name}", error=PatternError)
+        if not isinstance(self.dictionary, str) or not self.dictionary.startswith("DICT_"):
+            raise PatternError(f"MarkerBoard.dictionary must name an ArUco dictionary (DICT_...), got {self.dictionary!r}")
 
     @property
     def pitch(self) -> float:
@@ -95,6 +95,9 @@ def nominal_mount(board: MarkerBoard, table_underside: float = 0.21) -> np.ndarr
     underside at ``Y0 = table_underside`` (m; 0.21 m for the ``siremobile-iso-c3d`` table top). The board's
     X runs along Z0, its Z points up (−Y0) into the table, so its printed side faces the source below.
     """
+    if not isinstance(board, MarkerBoard):
+        raise PatternError(f"board must be a MarkerBoard, got {type(board).__name__}")
+    table_underside = real_scalar(table_underside, "table_underside", error=PatternError, unit="m")
     R = np.column_stack(((0.0, 0.0, 1.0), (-1.0, 0.0, 0.0), (0.0, -1.0, 0.0)))
     width, height = board.size
     centre = np.array([0.0, table_underside, 0.0])
@@ -107,5 +110,5 @@ def nominal_mount(board: MarkerBoard, table_underside: float = 0.21) -> np.ndarr
 def mounted(T_table_marker_nominal, rotation_error) -> np.ndarray:
     """The mount with its rotation perturbed by ``rotation_error`` (3, 3), about the marker origin."""
     T = check_rigid_transform(T_table_marker_nominal, "T_table_marker_nominal").copy()
-    T[:3, :3] = T[:3, :3] @ np.asarray(rotation_error, dtype=float)
+    T[:3, :3] = T[:3, :3] @ rotation(rotation_error, "rotation_error", error=PatternError)
     return check_rigid_transform(T, "mounted pattern")

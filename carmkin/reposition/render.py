@@ -16,7 +16,9 @@ import numpy as np
 
 from carmkin.extras import require
 from carmkin.transforms import check_rigid_transform, inverse
+from carmkin.validation import real_scalar
 
+from . import _checks
 from .camera import CameraError, check_image_size, check_intrinsics
 from .pattern import MarkerBoard
 
@@ -56,10 +58,12 @@ def render(board: MarkerBoard, K, image_size, T_marker_camera, blur_px: float = 
     """
     cv2 = require("cv2", "reposition")
 
+    _checks.instance(board, MarkerBoard, "board", CameraError)
     columns, rows = check_image_size(image_size)
-    for name, value in (("blur_px", blur_px), ("noise_gray", noise_gray)):
-        if not (np.isfinite(value) and value >= 0):
-            raise CameraError(f"{name} must be finite and >= 0, got {value}")
+    blur_px = real_scalar(blur_px, "blur_px", error=CameraError, low=0.0, unit="px")
+    noise_gray = real_scalar(noise_gray, "noise_gray", error=CameraError, low=0.0, unit="gray levels")
+    if rng is not None:
+        _checks.generator(rng, "rng", CameraError)
     if noise_gray > 0 and rng is None:
         raise CameraError("noise_gray > 0 needs an rng (numpy Generator)")
     texture, S = board_texture(board)

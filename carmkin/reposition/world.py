@@ -20,7 +20,9 @@ from carmkin.errors import (
 )
 from carmkin.transforms import check_rigid_transform
 
-from . import camera, pose
+from carmkin.validation import joint_index, real_scalar, rigid_transform
+
+from . import _checks, camera, pose
 from .calibration import calibrate_table, calibration_moves
 from .pattern import MarkerBoard, mounted, nominal_mount
 
@@ -33,12 +35,16 @@ def random_rotation(rng: np.random.Generator, angle: float) -> np.ndarray:
     """A rotation (3, 3) by ``angle`` (rad) about a uniformly random axis."""
     from scipy.spatial.transform import Rotation
 
+    _checks.generator(rng, "rng", SimulationError)
+    angle = real_scalar(angle, "angle", error=SimulationError, unit="rad")
     axis = rng.normal(size=3)
     return Rotation.from_rotvec(angle * axis / np.linalg.norm(axis)).as_matrix()
 
 
 def system_mount(system, board: MarkerBoard) -> np.ndarray:
     """The nominal mount (4, 4) of ``board`` centred under the table top of ``system`` (Y0 points down)."""
+    _checks.system(system, "system", SimulationError)
+    _checks.instance(board, MarkerBoard, "board", SimulationError)
     top = system.table
     return nominal_mount(board, float(top.top_center[1] + top.top_size[1] / 2))
 
@@ -55,14 +61,16 @@ class OperatorModel:
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
-            value = getattr(self, f.name)
-            if not (np.isfinite(value) and value >= 0):
-                raise SimulationError(f"OperatorModel.{f.name} must be finite and >= 0, got {value}")
+            real_scalar(getattr(self, f.name), f"OperatorModel.{f.name}", error=SimulationError, low=0.0)
 
     def execute(self, system, q, joint: int, move: float, rng: np.random.Generator) -> np.ndarray:
         """The joints (nq,) after the operator moved ``joint`` by about ``move`` from ``q``."""
+        _checks.system(system, "system", SimulationError)
+        out = _checks.joints(system, q, "q", SimulationError).copy()
+        joint = joint_index(joint, "joint", system.nq, names=system.joint_names, error=SimulationError)
+        move = real_scalar(move, "move", error=SimulationError, unit="m or rad")
+        _checks.generator(rng, "rng", SimulationError)
         absolute = self.translation if system.prismatic[joint] else self.rotation
-        out = np.array(q, dtype=float)
         actual = move * (1.0 + self.relative * rng.normal()) + absolute * rng.normal()
         # the physical stops: a joint cannot pass its mechanical limit
         out[joint] = min(max(out[joint] + actual, system.lower[joint]), system.upper[joint])
@@ -89,9 +97,11 @@ class World:
                corner_noise_px: float = 0.2, board: MarkerBoard | None = None) -> "World":
         """A room with the pattern under the table top of ``system``, mounted with a rotation error of
         ``mount_error`` (rad) about a random axis; ``tRm`` starts as the truth (see :meth:`calibrated`)."""
-        if not (np.isfinite(corner_noise_px) and corner_noise_px >= 0):
-            raise SimulationError(f"corner noise must be finite and >= 0 (px), got {corner_noise_px}")
-        board = board or MarkerBoard()
+        _checks.system(system, "system", SimulationError)
+        _checks.generator(rng, "rng", SimulationError)
+        mount_error = real_scalar(mount_error, "mount_error", error=SimulationError, low=0.0, unit="rad")
+        corner_noise_px = real_scalar(corner_noise_px, "corner_noise_px (corner noise)", error=SimulationError, low=0.0, unit="px")
+        board = MarkerBoard() if board is None else _checks.instance(board, MarkerBoard, "board", SimulationError)
         T = mounted(system_mount(system, board), random_rotation(rng, mount_error))
         return cls(system, board, T, T[:3, :3].copy(), float(corner_noise_px))
 
@@ -112,23 +122,33 @@ class World:
 
     def view(self, T_table_source) -> camera.CornerView:
         """Ideal corners seen by the camera at the source pose ``T_table_source`` (true, table frame)."""
+        T = rigid_transform(T_table_source, "T_table_source", error=SimulationError)
         return camera.visible_corners(self.board, self.K, self.image_size,
-                                      camera.camera_in_marker(self.T_table_marker, T_table_source))
+                                      camera.camera_in_marker(self.T_table_marker, T))
 
     def measure_marker(self, T_table_source, rng: np.random.Generator) -> pose.PoseEstimate:
         """The camera's estimate, in the marker frame, at the true source pose ``T_table_source``."""
+        _checks.generator(rng, "rng", SimulationError)
         noisy = camera.with_noise(self.view(T_table_source), self.corner_noise_px, rng)
         return pose.pose_from_view(noisy, self.K, sigma_px=self.corner_noise_px or None)
 
+    def measure_estimate(self, q, rng: np.random.Generator) -> pose.PoseEstimate:
+        """The camera's estimate at the true joints ``q``, expressed in the table frame as the guidance sees
+        it (through the calibrated mount): pose, residuals, covariance."""
+        q = _checks.joints(self.system, q, "q", SimulationError)
+        return self.measure_marker(self.system.fk(q), rng).expressed_in(self.measured_mount)
+
     def measure(self, q, rng: np.random.Generator) -> np.ndarray:
         """The source pose (4, 4) in the table frame as the guidance sees it at the true joints ``q``."""
-        return self.measured_mount @ self.measure_marker(self.system.fk(q), rng).T
+        return self.measure_estimate(q, rng).T
 
     def calibrated(self, q, rng: np.random.Generator, positions: int = 6, span: float = 0.2,
                    method: str = "svd") -> "World":
         """This room after the §3.3.3 calibration at the C-arm joints ``q``: the table moves along Z0 and
         Y0 (``positions`` stops, up to ``span`` m each), the camera measures each time, and ``tRm`` is
         estimated by :func:`calibrate_table`."""
+        q = _checks.joints(self.system, q, "q", SimulationError)
+        _checks.generator(rng, "rng", SimulationError)
         moves = calibration_moves(positions, span)
         T0 = check_rigid_transform(self.system.fk(q), "source pose")
         measured = []

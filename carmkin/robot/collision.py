@@ -31,6 +31,7 @@ from carmkin.errors import (
     CollisionSceneError,  # noqa: F401 (defined there, raised here)
 )
 from carmkin.transforms import check_rigid_transform
+from carmkin.validation import real_array
 
 #: Links of the C-arm that move with the vertical joint or later joints (collision candidates).
 CARM_MOVING_LINKS = ("dh_frame_2", "dh_frame_3", "dh_frame_4", "dh_frame_5", "dh_frame_6", "xray_source", "detector")
@@ -65,7 +66,8 @@ class Obstacle:
             raise CollisionSceneError(
                 f"Obstacle {self.name!r}: shape must be one of {sorted(self._ARITY)}, got {self.shape!r}"
             )
-        size = tuple(float(v) for v in np.atleast_1d(self.size))
+        size = tuple(real_array(np.atleast_1d(self.size) if isinstance(self.size, (int, float)) else self.size,
+                                f"Obstacle {self.name!r} size", (None,), error=CollisionSceneError, unit="m").tolist())
         if len(size) != self._ARITY[self.shape] or not all(np.isfinite(v) and v > 0 for v in size):
             raise CollisionSceneError(
                 f"Obstacle {self.name!r}: a {self.shape} needs {self._ARITY[self.shape]} positive finite sizes (m),"
@@ -77,7 +79,7 @@ class Obstacle:
     @classmethod
     def box(cls, name: str, size, center=(0.0, 0.0, 0.0), rotation=None) -> "Obstacle":
         """An axis-aligned (or rotated) box of full extents ``size`` (m) centred at ``center`` (table frame)."""
-        return cls(name, "box", tuple(size), _pose(center, rotation))
+        return cls(name, "box", size, _pose(center, rotation))
 
     @classmethod
     def capsule(cls, name: str, radius: float, length: float, center=(0.0, 0.0, 0.0), rotation=None) -> "Obstacle":
@@ -97,9 +99,9 @@ class Obstacle:
 
 def _pose(center, rotation) -> np.ndarray:
     T = np.eye(4)
-    T[:3, 3] = np.asarray(center, dtype=float)
+    T[:3, 3] = real_array(center, "Obstacle center", (3,), error=CollisionSceneError, unit="m")
     if rotation is not None:
-        T[:3, :3] = np.asarray(rotation, dtype=float)
+        T[:3, :3] = real_array(rotation, "Obstacle rotation", (3, 3), error=CollisionSceneError)
     return T
 
 
@@ -194,6 +196,10 @@ class CollisionScene:
     @classmethod
     def from_system(cls, system, obstacles: Sequence[Obstacle] = ()) -> "CollisionScene":
         """The C-arm scene of ``system`` with the documented pair list (:func:`carm_pair_names`)."""
+        if obstacles is None or isinstance(obstacles, (str, bytes, dict)) or not all(
+                isinstance(o, Obstacle) for o in obstacles):
+            raise CollisionSceneError(
+                f"obstacles must be a list of carmkin.robot.collision.Obstacle, got {obstacles!r}")
         model, geometry_model, _ = system.pinocchio()
         names = [g.name for g in geometry_model.geometryObjects]
         return cls(model, geometry_model, carm_pair_names(names, [o.name for o in obstacles]), obstacles, root="table")

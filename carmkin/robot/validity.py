@@ -17,6 +17,7 @@ from typing import Sequence
 import numpy as np
 
 from carmkin.errors import InvalidConfigurationError
+from carmkin.model.params import JOINT_RANGE_TOLERANCE
 from carmkin.transforms import segment_hits_box
 from carmkin.validation import JOINT_VALUE_LIMIT, real_array, real_scalar
 
@@ -58,6 +59,31 @@ class Contact:
         return f"{a} {how} {b} ({self.first}/{self.second}, distance {self.distance * 1e3:.3g} mm)"
 
 
+class _Deferred:
+    """A field of a frozen dataclass that may also be given as a function of no arguments, called on the first
+    read and kept (the exact smallest distance costs every pair's distance, the cone test a slab test: an
+    acceptance rule that reads neither does not pay for them). ``kind`` converts the value; ``default`` is
+    the dataclass default."""
+
+    def __init__(self, kind, default) -> None:
+        self.kind, self.default = kind, default
+
+    def __set_name__(self, owner, name: str) -> None:
+        self.slot = "_" + name
+
+    def __get__(self, obj, owner=None):
+        if obj is None:
+            return self.default
+        value = obj.__dict__[self.slot]
+        if callable(value):
+            value = self.kind(value())
+            obj.__dict__[self.slot] = value
+        return value
+
+    def __set__(self, obj, value) -> None:
+        obj.__dict__[self.slot] = value if callable(value) else self.kind(value)
+
+
 #: Rendered when the principal axis misses the table top.
 NOT_IN_CONE = "table not in the X-ray cone (principal axis misses the table top)"
 
@@ -69,14 +95,16 @@ class ValidityReport:
     Attributes:
         joints: joints out of range. collisions: pairs with distance < ``margin`` (intersecting when
         ``margin`` = 0). table_in_cone: whether the principal axis meets the table-top box.
-        min_distance: smallest signed distance over the pairs (m). margin: the margin used (m).
+        min_distance: smallest signed distance over the pairs (m). Both may be given as functions, computed
+        on first read. margin: the margin used (m), which every
+        report states (``str(report)``: ``valid at margin 10 mm``): a solve reports at its own margin.
     """
 
     q: np.ndarray
     joints: tuple[JointViolation, ...]
     collisions: tuple[Contact, ...]
-    table_in_cone: bool
-    min_distance: float
+    table_in_cone: bool = _Deferred(bool, True)
+    min_distance: float = _Deferred(float, float("inf"))
     margin: float = 0.0
 
     @property
@@ -97,7 +125,18 @@ class ValidityReport:
         return out if self.table_in_cone else out + (NOT_IN_CONE,)
 
     def __str__(self) -> str:
-        return "valid" if self.valid else "; ".join(self.reasons)
+        """``valid at margin 10 mm`` or the reasons, with the margin they were computed at."""
+        at = f"at margin {self.margin * 1e3:g} mm"
+        return f"valid {at}" if self.valid else f"invalid {at}: " + "; ".join(self.reasons)
+
+
+def require_system(system, error=InvalidConfigurationError) -> None:
+    """``error`` naming the argument unless ``system`` is a :class:`carmkin.CArmSystem` (the one check of the
+    solvers' ``system`` argument: a junk value is refused before any attribute of it is read)."""
+    from carmkin.model.system import CArmSystem
+
+    if not isinstance(system, CArmSystem):
+        raise error(f"system must be a carmkin.CArmSystem (carmkin.load_preset(...)), got {type(system).__name__}")
 
 
 def pose_in_cone(system, T) -> bool:
@@ -129,6 +168,7 @@ def check(
     :class:`~carmkin.robot.state.KinematicState` of ``q`` with that scene, when the caller has it already
     (one forward-kinematics pass per configuration).
     """
+    require_system(system)
     model = system.pinocchio()[0]
     q = real_array(q, "q", (model.nq,), error=InvalidConfigurationError, limit=JOINT_VALUE_LIMIT, unit="m, rad")
     margin = real_scalar(margin, "margin", error=InvalidConfigurationError, low=0.0, unit="m")
@@ -139,21 +179,43 @@ def check(
         state = KinematicState(model, q, scene)
     elif not np.array_equal(state.q, q):
         raise InvalidConfigurationError("the kinematic state given to check() belongs to another configuration")
-    scene = state.scene
-    joints = tuple(
+    distances = state.distances
+    pairs = np.flatnonzero(distances < margin)
+    return report(system, q, state.scene, pairs, distances[pairs], state.min_distance, state.source_pose, margin)
+
+
+def joint_violations(system, q: np.ndarray, bounds=None) -> tuple[JointViolation, ...]:
+    """The joints of ``q`` (nq,) outside their ranges (a value within the range tolerance of a limit is in);
+    ``bounds``: ``(system.lower, system.upper)`` as lists when the caller holds them."""
+    lower, upper = bounds if bounds is not None else (system.lower.tolist(), system.upper.tolist())
+    if all(lo <= v <= hi for lo, v, hi in zip(lower, q.tolist(), upper)):  # the usual case, on floats
+        return ()
+    return tuple(
         JointViolation(r.name if r.name != "joint" else n, float(v), float(r.excess(v)), bool(p))
         for n, r, v, p in zip(system.joint_names, system.joint_ranges, q, system.prismatic)
         if r.excess(v) != 0.0
     )
-    distances = state.distances
-    collisions = tuple(
-        Contact(scene.pairs[k][0], scene.pairs[k][1], float(distances[k])) for k in np.flatnonzero(distances < margin)
-    )
+
+
+def within_ranges(system, qs: np.ndarray) -> np.ndarray:
+    """(N,) bool: every joint of each row of ``qs`` (N, nq) within its range (the range tolerance included)."""
+    tolerance = JOINT_RANGE_TOLERANCE
+    return np.all((qs >= system.lower - tolerance) & (qs <= system.upper + tolerance), axis=1)
+
+
+def report(system, q: np.ndarray, scene: CollisionScene, pairs, distances, min_distance,
+           source_pose: np.ndarray, margin: float, bounds=None) -> ValidityReport:
+    """The report of ``q`` from its parts: ``pairs`` (indices into ``scene.pairs``) closer than ``margin``
+    with their ``distances`` (m), the smallest distance over all pairs (a float, or a function giving it on
+    first read), and the source pose (4, 4);
+    ``bounds`` as in :func:`joint_violations`."""
+    collisions = tuple(Contact(scene.pairs[k][0], scene.pairs[k][1], float(d))
+                       for k, d in zip(np.asarray(pairs).tolist(), np.asarray(distances).tolist())) if len(pairs) else ()
     return ValidityReport(
         q=q,
-        joints=joints,
+        joints=joint_violations(system, q, bounds),
         collisions=collisions,
-        table_in_cone=pose_in_cone(system, state.source_pose),
-        min_distance=state.min_distance,
+        table_in_cone=lambda: pose_in_cone(system, source_pose),
+        min_distance=min_distance,
         margin=float(margin),
     )

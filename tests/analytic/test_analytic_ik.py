@@ -17,6 +17,8 @@ import carmkin
 from carmkin import analytic_ik, transforms
 from carmkin.model import sampling
 from carmkin.model.params import JOINT_NAMES, JOINT_RANGE_TOLERANCE
+from carmkin.analytic_ik import SINGULAR_CASES
+from carmkin.transforms import NEARLY_RIGID_TOLERANCE, nearest_rigid, pose_error
 
 REVOLUTE = [2, 4, 5]
 PRISMATIC = [0, 1, 3]
@@ -196,14 +198,16 @@ def test_singular_poses_are_solved_numerically_or_raise(data, case, offset):
     except analytic_ik.SingularPoseError as exc:
         assert all(analytic_ik.SINGULAR_CASES[expected[c]] in exc.cases for c in case.split("+"))
         return
-    assert result.numerical and abs(result.det_j) < analytic_ik.SINGULAR_TOLERANCE
+    assert abs(result.det_j) < analytic_ik.SINGULAR_TOLERANCE
+    # the singular family (case b) has its closed form; near a and c the regular closed form is kept when the FK
+    # accepts it; the others are solved numerically (every answer is checked below)
     # in case b, θ2 is free (only θ2 ± θ5 is fixed): whether (c) holds too depends on the θ2 picked
     for c in case.split("+")[:1]:
         assert analytic_ik.SINGULAR_CASES[expected[c]] in result.singular
     reached = [k for k in range(2) if result.branches[k].reached]
     assert reached and result.chosen in reached
     for k in reached:
-        assert result.branches[k].numerical and result.branches[k].residual <= 1e-9
+        assert result.branches[k].numerical == result.numerical and result.branches[k].residual <= 1e-9
         # near case c the exact solution can sit metres to kilometres away: round-off scales with it
         scale = max(1.0, np.abs(result.solutions[k]).max())
         dp, dr = pose_errors(system.fk(result.solutions[k]), T)
@@ -222,12 +226,14 @@ def test_det_j_of_eq_4_7_equals_the_determinant_of_pinocchios_jacobian(data):
 
 
 def test_batch_flags_singular_poses_and_solves_them():
+    """The first pose is on the singular family (θ4 = π/2): closed form, θ2 from q_current (zero), θ2 + θ5 kept."""
     system = PRESET
     q = np.array([[0.1, 0.2, 0.05, 0.1, np.pi / 2, 0.3], [0.1, 0.2, 0.05, 0.1, 0.2, 0.3]])
     batch = analytic_ik.solve_batch(system, system.fk(q))
-    assert list(batch.numerical) == [True, False]
+    assert list(batch.numerical) == [False, False]  # the singular family has its closed form
     assert list(batch.singular[0]) == [False, True, False] and not batch.singular[1].any()
     assert batch.residual[batch.chosen, [0, 1]].max() <= 1e-9
+    assert batch.q[0, 2] == 0.0 and batch.q[0, 5] == pytest.approx(0.35, abs=1e-12)
 
 
 # --- selection and representatives ---------------------------------------------------------------------------
@@ -311,12 +317,53 @@ def test_result_contract():
     assert result.branches[0].status == "ok" and "out of range" in result.branches[1].status
 
 
+def is_rigid(T) -> bool:
+    try:
+        transforms.check_rigid_transform(np.asarray(T, dtype=float))
+        return True
+    except carmkin.InvalidPoseError:
+        return False
+
+
+# --- nearly rigid poses (rounded by a user, stored as float32): projected, the correction reported -----------
+@settings(max_examples=50)
+@given(configurations(), st.sampled_from(["round4", "float32"]))
+def test_a_nearly_rigid_pose_is_projected_and_the_correction_reported(q, kind):
+    T = PRESET.fk(q)
+    rough = np.round(T, 4) if kind == "round4" else T.astype(np.float32)
+    rigid, correction = nearest_rigid(np.asarray(rough, dtype=float))  # the independent route
+    if is_rigid(rough):  # rigid to RIGID_TOLERANCE already: taken as it is
+        rigid, correction = np.asarray(rough, dtype=float), 0.0
+    for result in (analytic_ik.solve(PRESET, rough), analytic_ik.solve_batch(PRESET, np.asarray(rough)[None])):
+        assert np.all(np.abs(np.atleast_1d(result.pose_correction) - correction) <= 1e-15)
+        solutions = np.asarray(result.solutions).reshape(2, 6)
+        for q_b in solutions:
+            if np.all(np.isfinite(q_b)):
+                position, angle = pose_error(PRESET.fk(q_b), rigid)
+                assert position <= 1e-9 and angle <= 1e-9
+
+
+def test_a_rigid_pose_has_no_correction():
+    T = PRESET.fk(np.zeros(6) + 0.1)
+    assert analytic_ik.solve(PRESET, T).pose_correction == 0.0
+    assert np.all(analytic_ik.solve_batch(PRESET, T[None]).pose_correction == 0.0)
+
+
+def test_a_pose_beyond_the_nearly_rigid_tolerance_names_nearest_rigid():
+    T = PRESET.fk(np.zeros(6) + 0.1)
+    T[0, 0] += 10 * NEARLY_RIGID_TOLERANCE
+    with pytest.raises(carmkin.InvalidPoseError, match="carmkin.transforms.nearest_rigid"):
+        analytic_ik.solve(PRESET, T)
+    with pytest.raises(carmkin.InvalidPoseError, match="carmkin.transforms.nearest_rigid"):
+        analytic_ik.solve_batch(PRESET, np.stack((np.eye(4), T)))
+
+
 # --- typed errors --------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("bad", [
     np.eye(3),
     np.diag([1.0, 1.0, -1.0, 1.0]),
     np.full((4, 4), np.nan),
-    np.eye(4) + 1e-6 * np.eye(4)[::-1],
+    np.eye(4) + 1e-2 * np.eye(4)[::-1],  # farther from rigid than NEARLY_RIGID_TOLERANCE
     [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 2]],
     "pose",
 ])

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from strategies import rotations
 
 from carmkin.reposition import CalibrationError, calibrate_table
-from carmkin.reposition.calibration import METHODS, calibration_moves, residual_rms
+from carmkin.reposition.calibration import METHODS, calibrate, calibration_moves, residual_rms
 from carmkin.reposition.calibration import rotation_angle as angle
 from carmkin.reposition.world import random_rotation
 
@@ -86,3 +86,47 @@ def test_calibration_moves_plan():
         calibration_moves(2, 0.3)
     with pytest.raises(CalibrationError):
         calibration_moves(6, 0.3, axes=(2,))
+
+
+def test_a_still_marker_is_refused_not_the_identity():
+    """Issue 19: the camera saw no move (a marker out of view, a stale pose) while the table moved."""
+    moves = calibration_moves(6, 0.2)
+    still = np.tile([0.1, -0.2, -0.4], (6, 1))
+    for measured in (still, still + np.random.default_rng(1).normal(0.0, 0.001, still.shape)):
+        for method in METHODS:
+            with pytest.raises(CalibrationError, match="camera_positions_marker"):
+                calibrate_table(measured, moves, method=method)
+
+
+@given(rotations(), st.sampled_from([0.5, 0.9, 1.1, 2.0]))
+def test_displacements_of_the_wrong_length_are_refused(R, factor):
+    moves = calibration_moves(6, 0.2)
+    with pytest.raises(CalibrationError, match="moved .* mm from the first position"):
+        calibrate_table(factor * moves @ R, moves)
+
+
+def test_camera_moving_along_one_line_only_is_refused():
+    moves = calibration_moves(6, 0.2)
+    along_one = np.outer(np.linalg.norm(moves, axis=1), [0.0, 0.6, 0.8])  # right lengths, one direction
+    with pytest.raises(CalibrationError, match="one line only"):
+        calibrate_table(along_one, moves)
+
+
+def test_displacements_no_rotation_explains_are_refused():
+    """Right lengths, but a reflection of the moves: no rotation maps one set onto the other."""
+    moves = calibration_moves(6, 0.2, axes=(2, 1, 0))
+    with pytest.raises(CalibrationError, match="no rotation maps"):
+        calibrate_table(moves * (1.0, 1.0, -1.0), moves)
+
+
+@given(rotations(), st.floats(0.0, 0.002, **finite))
+def test_calibrate_returns_the_residuals(R, sigma):
+    rng = np.random.default_rng(5)
+    moves = calibration_moves(8, 0.3, axes=(2, 1, 0))
+    measured = moves @ R + rng.normal(0.0, sigma, moves.shape)
+    result = calibrate(measured, moves)
+    # independent: the residual of each position from the definition, with the returned rotation
+    expected = np.array([result.tRm @ (p - measured[0]) - (d - moves[0]) for p, d in zip(measured, moves)])
+    np.testing.assert_allclose(result.residuals, expected, atol=1e-12)
+    assert result.rms == pytest.approx(math.sqrt(np.mean(np.sum(expected**2, axis=1))))
+    assert np.array_equal(result.tRm, calibrate_table(measured, moves))

@@ -13,7 +13,10 @@ from carmkin.cli import main
 def test_simulate_prints_the_guidance_steps(capsys):
     assert main(["reposition", "simulate", "--seed", "3"]) == 0
     out = capsys.readouterr().out
-    assert "move " in out and " mm" in out and "°" in out and "repositioned in" in out
+    assert "move " in out and " mm" in out and "°" in out
+    # issue 23: "repositioned" only with the stop rule, beside the true residual and what it means
+    assert "repositioned (the stop rule holds)" in out and "stop rule met" in out
+    assert "Residual against the reference" in out and "What the residual means" in out
 
 
 def test_experiment_and_calibration_tables(capsys):

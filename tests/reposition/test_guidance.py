@@ -146,3 +146,63 @@ def test_an_unreachable_reference_raises():
     T[:3, 3] += (0.0, 0.0, 5.0)  # 5 m along the table: beyond the translation range
     with pytest.raises(guidance.GuidanceError, match="no collision-free solution"):
         guidance.Guide(SYSTEM, T, np.zeros(6))
+
+
+def _estimate(T, covariance, condition=100.0):
+    from carmkin.reposition.pose import PoseEstimate
+
+    return PoseEstimate(T, 0.25, np.asarray(covariance, float), 48, np.zeros((48, 2)), condition, 0.2)
+
+
+def test_reading_covariance_agrees_with_monte_carlo():
+    """Pose noise (ω, δp) drawn from a covariance, joints read off each noisy pose: their spread matches the
+    linear propagation (loose: 400 samples, ratio of variances within [0.75, 1.33])."""
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(8)
+    q = np.array([0.05, 0.08, 0.05, 0.1, 0.3, -0.2])
+    T = SYSTEM.fk(q)
+    sd = np.array([2e-3, 1.5e-3, 3e-4, 1e-3, 8e-4, 2e-4])
+    A = rng.normal(size=(6, 6)) * 0.3 + np.eye(6)
+    cov = (A * sd) @ (A * sd).T
+    reads = []
+    for x in rng.multivariate_normal(np.zeros(6), cov, 400):
+        Tn = T.copy()
+        Tn[:3, :3] = Rotation.from_rotvec(x[:3]).as_matrix() @ T[:3, :3]
+        Tn[:3, 3] += x[3:]
+        reads.append(guidance.read_joints(SYSTEM, Tn, q))
+    ratio = np.var(np.array(reads), axis=0) / np.diag(guidance.reading_covariance(SYSTEM, q, cov))
+    assert np.all((ratio > 0.75) & (ratio < 1.33)), ratio
+
+
+def test_the_stop_rule_accounts_for_the_pose_uncertainty():
+    q = np.array([0.0, 0.1, 0.0, 0.1, 0.0, 0.0])
+    near = q + np.array([0.0015, 0.0, 0.0, 0.0, 0.0, 0.0])  # 1.5 mm of table translation left: below 2 mm
+    position_sd = lambda mm: np.diag([1e-16] * 3 + [(mm * 1e-3) ** 2] * 3)  # noqa: E731
+    guide = guidance.Guide(SYSTEM, SYSTEM.fk(near), q)
+    assert guide.step(_estimate(SYSTEM.fk(q), np.zeros((6, 6)))).done  # exact estimate: the seed's rule
+    assert guide.step(_estimate(SYSTEM.fk(q), position_sd(1.5))).done  # sd 1.5 mm <= the 2 mm threshold
+    unresolved = guide.step(_estimate(SYSTEM.fk(q), position_sd(2.5)))  # sd 2.5 mm > the threshold
+    assert not unresolved.done and unresolved.blocked and "too uncertain" in unresolved.blocked
+    assert unresolved.sd[0] == pytest.approx(2.5e-3, rel=0.05)
+    half = guidance.Guide(SYSTEM, SYSTEM.fk(near), q, guidance.GuidanceOptions(max_sd_fraction=0.5))
+    assert "too uncertain" in half.step(_estimate(SYSTEM.fk(q), position_sd(1.5))).blocked
+    strict = guidance.Guide(SYSTEM, SYSTEM.fk(near), q, guidance.GuidanceOptions(stop_sigmas=1.0))
+    step = strict.step(_estimate(SYSTEM.fk(q), position_sd(0.8)))  # 1.5 mm + 0.8 mm > 2 mm: move again
+    assert not step.done and SYSTEM.joint_names[step.joint] == "table_translation"
+    flagged = guide.step(_estimate(SYSTEM.fk(q), np.zeros((6, 6)), condition=1e5))
+    assert flagged.ill_conditioned and not flagged.done and "ill-conditioned" in flagged.blocked
+
+
+@given(st.data())
+def test_stop_rule_bound_bounds_the_source_displacement(data):
+    """Every joint moved by its threshold, in any signs: the source moves at most the bound (+ 2nd order)."""
+    options = guidance.GuidanceOptions()
+    q = in_range(SYSTEM, data) * 0.9
+    bound_m, bound_rad = guidance.stop_rule_bound(SYSTEM, q, options)
+    signs = np.array([data.draw(st.sampled_from([-1.0, 1.0])) for _ in range(SYSTEM.nq)])
+    moved = SYSTEM.fk(q + signs * options.thresholds(SYSTEM))
+    from carmkin.reposition.calibration import rotation_angle
+
+    assert np.linalg.norm(moved[:3, 3] - SYSTEM.fk(q)[:3, 3]) <= bound_m * 1.01 + 1e-6
+    assert rotation_angle(moved[:3, :3], SYSTEM.fk(q)[:3, :3]) <= bound_rad * 1.01 + 1e-9

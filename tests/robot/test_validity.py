@@ -29,7 +29,7 @@ def inside_table(p):
 def test_zero_configuration_is_valid():
     """At q = 0 the beam goes up through the isocentre (table frame origin) and the C clears the table."""
     report = validity.check(PRESET, np.zeros(6), scene=SCENE)
-    assert report.valid and report.reasons == () and str(report) == "valid"
+    assert report.valid and report.reasons == () and str(report) == "valid at margin 0 mm"
     assert report.min_distance > 0
 
 
@@ -152,4 +152,5 @@ def test_reasons_are_rendered_from_the_fields_in_mm_and_degrees():
                               "joint vertical out of range by +20 mm (value 500 mm)",
                               "dh_frame_6 intersects table_top (dh_frame_6_3/table_top, distance -4 mm)",
                               NOT_IN_CONE)
-    assert not report.valid and not report.reachable and str(report) == "; ".join(report.reasons)
+    assert not report.valid and not report.reachable
+    assert str(report) == "invalid at margin 10 mm: " + "; ".join(report.reasons)

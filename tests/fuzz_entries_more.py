@@ -1,0 +1,191 @@
+"""More fuzz entry points: the rest of imaging (homographies between poses, borders, distances, projection
+matrices of a configuration), DeepDRR's MobileCArm, singularity maps and classification, panorama shots,
+phantom noise, the validity report, DICOM XA angles, and the repositioning camera.
+"""
+
+from __future__ import annotations
+
+import math
+
+import fuzz_geometry as g
+import numpy as np
+from fuzz_engine import Case, maybe_junk
+from fuzz_entries_systems import MOTORIZED, PRESET, _q, _system
+
+from carmkin import imaging
+from carmkin import singularity as sing
+from carmkin.interop import simulators as sim
+
+
+def homography_between(rng):
+    K = g.intrinsics(rng)
+    T1 = g.pose(rng, scale=0.5)
+    T2 = T1.copy()
+    T2[:3, :3] = T1[:3, :3] @ g.rotation(rng) if rng.random() < 0.5 else T1[:3, :3]
+    T2[:3, 3] += rng.normal(size=3) * rng.choice([0.0, 1e-3, 0.05])
+    n = T1[:3, 2]
+    d = float(n @ T1[:3, 3] + rng.choice([0.3, 1.0, 5.0]))  # a plane in front of view 1
+    pure = rng.random() < 0.3 and np.allclose(T1[:3, 3], T2[:3, 3])
+    X = np.array([T1[:3, 3] + (d - n @ T1[:3, 3]) * n + 0.05 * np.cross(n, g.unit(rng)) for _ in range(4)])
+
+    def check(H):
+        d1 = (X - T1[:3, 3]) @ T1[:3, 2]
+        d2 = (X - T2[:3, 3]) @ T2[:3, 2]
+        if np.any(d1 <= 1e-6) or np.any(d2 <= 1e-6):
+            return True  # not seen by both views: nothing to compare
+        m1, m2 = imaging.project(K, T1, X), imaging.project(K, T2, X)
+        mapped = np.column_stack((m2, np.ones(len(m2)))) @ H.T
+        return g.close(mapped[:, :2] / mapped[:, 2:], m1, rtol=1e-5, atol=1e-4 * max(1, np.abs(m1).max()))
+    args = (K, T1, T2) if pure else (K, T1, T2, n, d)
+    return maybe_junk(rng, Case(imaging.homography_between, args, check=check), ("K", "T1", "T2", "n", "d")[:len(args)])
+
+
+def dehomogenize(rng):
+    m = rng.normal(size=(int(rng.integers(1, 6)), 3)) * rng.choice([1e-3, 1.0, 1e5])
+    expected = m[:, :2] / m[:, 2:]
+    return maybe_junk(rng, Case(imaging.dehomogenize, (m,), check=lambda r: g.close(r, expected, rtol=1e-12)), ("m",))
+
+
+def image_border(rng):
+    w, h, k = int(rng.integers(1, 5000)), int(rng.integers(1, 5000)), int(rng.integers(1, 40))
+
+    def check(b):
+        on_edge = (np.isclose(b[:, 0], -0.5) | np.isclose(b[:, 0], w - 0.5) | np.isclose(b[:, 1], -0.5)
+                   | np.isclose(b[:, 1], h - 0.5))
+        return b.shape == (4 * k + 1, 2) and bool(np.all(on_edge)) and np.array_equal(b[0], b[-1])
+    return maybe_junk(rng, Case(imaging.image_border, (w, h, k), check=check), ("columns", "rows", "per_edge"))
+
+
+def measure_distance(rng):
+    K = g.intrinsics(rng)
+    d = float(rng.choice([1e-3, 0.5, 5.0]))
+    a = np.array([rng.normal() * 0.1 * d, rng.normal() * 0.1 * d, d])
+    b = a + np.array([rng.normal(), rng.normal(), 0.0]) * rng.choice([1e-6, 1e-3, 0.1]) * d
+    m1, m2 = imaging.project(K, np.eye(4), a), imaging.project(K, np.eye(4), b)
+    n = np.array([0.0, 0.0, 1.0])
+    return maybe_junk(rng, Case(imaging.measure_distance, (K, m1, m2, n, d), check=lambda r: abs(
+        r[0] - np.linalg.norm(a - b)) <= 1e-6 * d), ("K", "m1", "m2", "n", "d"))
+
+
+def projection_of_configuration(rng):
+    system = _system(rng)
+    q = _q(rng, system)
+    patient = str(rng.choice(list(imaging.projection.PATIENT_POSITIONS)))
+    X = g.points_in_front(rng, system.fk(q), 4)
+
+    def check(P):
+        T_patient = imaging.patient_pose(patient)
+        Xp = (X - T_patient[:3, 3]) @ T_patient[:3, :3]  # the same points in the patient frame
+        m = np.column_stack((Xp, np.ones(len(Xp)))) @ P.T
+        expected = imaging.project(system.carm.intrinsics(), system.fk(q), X)
+        return g.close(m[:, :2] / m[:, 2:], expected, rtol=1e-6, atol=1e-5)
+    return maybe_junk(rng, Case(imaging.projection_matrix, (system, q, patient), check=check),
+                      ("system", "q", "patient?"))
+
+
+def mobile_carm(rng):
+    system = _system(rng)
+    q = _q(rng, system)
+
+    def check(state):
+        T = sim.mobile_carm_source_pose(state)
+        return g.close(sim.to_metres(T), system.fk(q), atol=1e-9)
+    return maybe_junk(rng, Case(sim.deepdrr_mobile_carm, (system, q), check=check), ("system", "q"))
+
+
+def classify(rng):
+    q = _q(rng, PRESET)
+    near = float(rng.choice([0.0, 1e-9, math.radians(5)]))
+
+    def check(r):
+        b = abs(math.cos(q[4]))
+        return ("b" in r.singular_cases) == (math.asin(min(b, 1.0)) <= 1e-9) and r.rank <= 6
+    return maybe_junk(rng, Case(sing.classify, (PRESET, q), {"near": near}, check=check), ("system", "q"))
+
+
+def measure_map(rng):
+    system = _system(rng)
+    q = _q(rng, system)
+    pair = tuple(rng.choice(system.nq, 2, replace=False).tolist())
+    n = int(rng.integers(2, 6))
+    columns = [system.joint_names.index(name) for name in sing.JOINT_NAMES]
+
+    def check(r):
+        from fuzz_entries_systems import _pin_jacobian
+
+        x, y, values = r
+        i, j = rng.integers(0, n, 2)
+        qq = q.copy()
+        qq[pair[0]], qq[pair[1]] = x[j], y[i]
+        return abs(values[i, j] - abs(np.linalg.det(_pin_jacobian(system, qq)[:, columns]))) < 1e-9
+    return maybe_junk(rng, Case(sing.measure_map, (system, q, pair, n), check=check), ("system", "q", "pair", "n"))
+
+
+SHOT_PLANNER = None
+
+
+def panorama_shot(rng):
+    global SHOT_PLANNER
+    from carmkin.imaging.panorama import PanoramaPlanner
+
+    SHOT_PLANNER = SHOT_PLANNER or PanoramaPlanner(PRESET)
+    p = SHOT_PLANNER
+    pp = g.edge_pixels(rng, p.size, 1)[0]
+
+    def check(shot):
+        if not shot.valid:
+            return True
+        return g.close(shot.target, p.P_ref @ np.block([[shot.R, np.zeros((3, 1))], [np.zeros((1, 3)), 1.0]]),
+                       atol=1e-12) and g.close(PRESET.fk(shot.q), shot.target, atol=1e-7)
+    return maybe_junk(rng, Case(p.shot, (pp,), {"fallback": False}, check=check), ("principal_point",))
+
+
+def perturb(rng):
+    from carmkin.imaging.phantom import perturb as fn
+
+    T = g.pose(rng)
+    zero = rng.random() < 0.3
+    sm, sr = (0.0, 0.0) if zero else (float(rng.choice([1e-6, 1e-3])), float(rng.choice([1e-6, 0.01])))
+    return maybe_junk(rng, Case(fn, (T, np.random.default_rng(1), sm, sr), check=lambda r: g.is_rotation(r[:3, :3])
+                                and (not zero or g.close(r, T, atol=1e-15))), ("T", "rng", "sigma_m", "sigma_rad"))
+
+
+def validity(rng):
+    from carmkin.model.params import JOINT_RANGE_TOLERANCE
+    from carmkin.robot import validity as v
+
+    system = _system(rng)
+    q = _q(rng, system) + rng.choice([0.0, 1e-3, -1e-3, 2 * JOINT_RANGE_TOLERANCE]) * rng.integers(0, 2, system.nq)
+    out = (q < system.lower - JOINT_RANGE_TOLERANCE) | (q > system.upper + JOINT_RANGE_TOLERANCE)
+    return maybe_junk(rng, Case(v.check, (system, q), check=lambda r: sorted(system.joint_names.index(j.name)
+                                for j in r.joints) == sorted(np.flatnonzero(out).tolist())), ("system", "q"))
+
+
+def xa_angles(rng):
+    from carmkin.interop import dicom
+
+    primary, secondary = rng.uniform(-179, 179), rng.uniform(-89, 89)
+    patient = str(rng.choice(list(imaging.projection.PATIENT_POSITIONS)))
+    T = dicom.pose_from_xa_angles(primary, secondary, rng.normal(size=3) * 0.1, 0.7, patient)
+    return maybe_junk(rng, Case(dicom.xa_angles, (T, patient), check=lambda r: abs(r[0] - primary) < 1e-7 and abs(
+        r[1] - secondary) < 1e-7), ("T_source", "patient"))
+
+
+def project_points(rng):
+    from carmkin.reposition import camera
+
+    K, T = g.intrinsics(rng), g.pose(rng)
+    X = g.points_in_front(rng, T)
+    return maybe_junk(rng, Case(camera.project_points, (K, T, X), check=lambda r: g.close(
+        r[0], imaging.project(K, T, X), rtol=1e-9, atol=1e-6)), ("K", "T_frame_camera", "points"))
+
+
+ENTRIES = {
+    "imaging.homography_between": (homography_between, 2), "imaging.dehomogenize": (dehomogenize, 1),
+    "imaging.image_border": (image_border, 1), "imaging.measure_distance": (measure_distance, 1),
+    "imaging.projection_matrix": (projection_of_configuration, 1),
+    "simulators.deepdrr_mobile_carm": (mobile_carm, 1), "singularity.classify": (classify, 1),
+    "singularity.measure_map": (measure_map, 0.5), "panorama.shot": (panorama_shot, 0.2),
+    "phantom.perturb": (perturb, 1), "robot.validity.check": (validity, 0.5), "dicom.xa_angles": (xa_angles, 1),
+    "reposition.camera.project_points": (project_points, 1),
+}

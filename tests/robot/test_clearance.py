@@ -1,0 +1,86 @@
+"""Broad phase + exact narrow phase (carmkin.robot.clearance) against every pair's coal distance computed by
+Pinocchio's own CollisionScene.distances (the independent route): the bounds never exceed a distance, the
+smallest distance is the same number, the pairs below a margin are the same pairs."""
+
+import coal
+import numpy as np
+import pytest
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
+from strategies import motorized_systems, systems
+
+import carmkin
+from carmkin.errors import InvalidConfigurationError
+from carmkin.model.sampling import random_configurations
+from carmkin.robot.clearance import BOUND_SLACK, BoundedScene
+from carmkin.robot.collision import CollisionScene, Obstacle
+
+#: Two coal calls on the same pair agree to its GJK/EPA tolerance (1e-6 m), not to the last digit: the
+#: result depends on the initial guess each caller keeps (measured: 3.4e-7 m). Exact means this.
+SAME_DISTANCE = BOUND_SLACK
+
+
+def obstacles(rng):
+    """A patient-like box, a capsule and a sphere, placed at random near the isocentre (table frame, m)."""
+    return [
+        Obstacle.box("body", rng.uniform(0.1, 0.5, 3), rng.uniform(-0.4, 0.4, 3)),
+        Obstacle.capsule("arm", rng.uniform(0.03, 0.1), rng.uniform(0.1, 0.6), rng.uniform(-0.5, 0.5, 3)),
+        Obstacle("head", "sphere", (float(rng.uniform(0.05, 0.15)),), np.eye(4)),
+    ]
+
+
+def degenerate(scene) -> bool:
+    """A box of the generated collision model with a negative size: the xacro sizes the inner arm
+    ``0.9 arm_length - (R + c_thickness + 0.08)``, negative for short arms; coal's distances to such a box
+    depend on the previous query (reported to the lead; such systems are left out here)."""
+    return any(isinstance(g.geometry, coal.Box) and np.any(g.geometry.halfSide < 0)
+               for g in scene.geometry_model.geometryObjects)
+
+
+def check_scene(system, seed: int, n: int = 40, property_based: bool = True):
+    rng = np.random.default_rng(seed)
+    scene = CollisionScene.from_system(system, obstacles(rng))
+    if property_based:
+        assume(not degenerate(scene))
+    else:
+        assert not degenerate(scene)
+    bounded = BoundedScene(scene)
+    qs = random_configurations(rng, system, n, beyond=0.0)
+    full = np.array([scene.distances(q=q) for q in qs])
+    frames = bounded.joint_frames(qs)
+    bounds = bounded.lower_bounds(*bounded.boxes(frames))
+    assert np.all(bounds <= full), "a bound above coal's distance"
+    np.testing.assert_allclose(bounded.min_distance(qs), full.min(axis=1), rtol=0, atol=SAME_DISTANCE)
+    margin = float(rng.uniform(0.0, 0.1))
+    cheap = bounded.min_distance(qs, exact_below=margin)
+    below = full.min(axis=1) < margin
+    np.testing.assert_allclose(cheap[below], full.min(axis=1)[below], rtol=0, atol=SAME_DISTANCE)
+    assert np.all(cheap[~below] >= margin) and np.all(cheap[~below] <= full.min(axis=1)[~below] + SAME_DISTANCE)
+    for i in range(n):
+        pairs, distances, smallest = bounded.below(frames[i], bounds[i], margin)
+        assert set(pairs.tolist()) == set(np.flatnonzero(full[i] < margin).tolist())
+        np.testing.assert_allclose(distances, full[i][pairs], rtol=0, atol=SAME_DISTANCE)
+        assert abs(smallest - full[i].min()) <= SAME_DISTANCE
+
+
+@settings(max_examples=10)
+@given(systems(), st.integers(0, 2**32 - 1))
+def test_bounds_and_exact_distances_on_random_non_isocentric_systems(system, seed):
+    check_scene(system, seed)
+
+
+@settings(max_examples=5)
+@given(motorized_systems(min_joints=1), st.integers(0, 2**32 - 1))
+def test_bounds_and_exact_distances_on_motorized_tables(system, seed):
+    check_scene(system, seed)
+
+
+def test_motorized_preset():
+    check_scene(carmkin.load_preset("siremobile-iso-c3d-motorized-table"), 3, n=100, property_based=False)
+
+
+def test_bad_configurations_are_refused():
+    bounded = BoundedScene(CollisionScene.from_system(carmkin.load_preset("siremobile-iso-c3d")))
+    for bad in (np.zeros(5), np.full((2, 6), np.nan), np.zeros((2, 2, 6))):
+        with pytest.raises(InvalidConfigurationError, match="qs"):
+            bounded.min_distance(bad)
