@@ -26,6 +26,8 @@ import numpy as np
 from carmkin.model.params import JOINT_RANGE_TOLERANCE
 from carmkin.transforms import wrap_angle
 
+#: In the singular family, a residual of the first row below this (m) counts as satisfied.
+PLANE_TOLERANCE = 1e-12
 #: Ranges are met to half the joint-range tolerance, so that the rounding of the joints computed from λ
 #: keeps them within :data:`~carmkin.model.params.JOINT_RANGE_TOLERANCE` (a value on a limit is in range).
 INTERVAL_TOLERANCE = 0.5 * JOINT_RANGE_TOLERANCE
@@ -126,6 +128,14 @@ def families(system, targets, directions, theta2, frame, q_ref, distance_range) 
     P0s, P0d = r * Ux / n2, r * Gx / n2
     norm = np.sqrt(n2)
     vs, vd = -Gx / norm, Ux / norm
+    # The singular family (U_x = G_x = 0: beam and table axis in the arm's plane, e.g. θ4 = 0 with the wigwag
+    # on the table's axis): the first row reads 0 = r. Where it holds, every (s, d0) does; d0 keeps the
+    # reference value (within its range) and s runs along the line.
+    plane = ~ok & (np.abs(r) <= PLANE_TOLERANCE)
+    d0_ref = np.clip(q_ref[0], lower[0], upper[0])
+    P0s, P0d = np.where(plane, 0.0, P0s), np.where(plane, d0_ref, P0d)
+    vs, vd = np.where(plane, 1.0, vs), np.where(plane, 0.0, vd)
+    ok = ok | plane
     # (s, d0, d1, d3) at λ = 0 and their slopes.
     base = np.stack((P0s, P0d, tz - cz - Uz * P0s - Gz * P0d, ty - cy - Uy * P0s - Gy * P0d), axis=-1)
     slope = np.stack((vs, vd, -(Uz * vs + Gz * vd), -(Uy * vs + Gy * vd)), axis=-1)
