@@ -272,3 +272,17 @@ class UsageError(CarmkinError):
 
 class NotApplicableError(UsageError):
     """The command's mathematics does not apply to this system; the message names the alternative."""
+
+
+# --- carmkin.patient ------------------------------------------------------------------------------
+
+
+class PatientModelError(CarmkinError):
+    """A patient model is ill-defined (height, mass, position code, origin, CT volume) or overlaps the table."""
+
+
+# --- carmkin.views -------------------------------------------------------------------------------
+
+
+class ViewError(CarmkinError):
+    """A view is ill-defined (angles, target, direction, segment, distance, roll) or a view name is unknown."""

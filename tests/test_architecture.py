@@ -22,7 +22,8 @@ LAYERS = (
     ("carmkin.analytic", "carmkin.analytic_ik"),
     ("carmkin.qp", "carmkin.qp_ik", "carmkin.singularity"),
     ("carmkin.studies", "carmkin.imaging", "carmkin.reposition", "carmkin.interop", "carmkin.plots",
-     "carmkin.sweeps"),
+     "carmkin.sweeps", "carmkin.patient"),
+    ("carmkin.views",),
     ("carmkin.reproduce",),  # the dissertation's experiments: above the applications they simulate
     ("carmkin.viz",),
     ("carmkin.commands", "carmkin.cli"),

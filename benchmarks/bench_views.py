@@ -1,0 +1,72 @@
+"""Clinical views (issue 20): a reachability map with free roll and a parametric patient, plan_view, and the
+per-view QP loop they replace.
+
+1. ``carmkin.views.reach_map`` of the table origin over primary −90…90° × secondary −45…45° (181 × 91 at 1°;
+   --quick: 37 × 19 at 5°) on ``siremobile-iso-c3d`` with ``ParametricPatient.on_table`` (1.75 m, 75 kg).
+   Baseline in the same run: a per-view ``carmkin.qp_ik.solve`` loop on the same cells (an ``AxisTarget`` at
+   the source position the C-arm's geometry gives, the orbital offset from the target, the patient as
+   obstacles), timed on a random sample of the cells and scaled to the map's cell count.
+2. ``plan_view`` median over random views of the same grid.
+
+    python benchmarks/bench_views.py            # the full 181 × 91 map
+    python benchmarks/bench_views.py --quick    # 37 × 19
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+
+import numpy as np
+
+import carmkin
+from carmkin import qp_ik
+from carmkin.patient import ParametricPatient
+from carmkin.views import View, plan_view, reach_map
+
+from _timing import row
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--quick", action="store_true")
+    args = parser.parse_args()
+    step = 5 if args.quick else 1
+    system = carmkin.load_preset("siremobile-iso-c3d")
+    patient = ParametricPatient.on_table(system)
+    target = np.zeros(3)
+    primary, secondary = np.arange(-90, 91, step), np.arange(-45, 46, step)
+    reach_map(system, target, [0], [0], patient)  # builds the collision world once (cached), as a session would
+    start = time.perf_counter()
+    m = reach_map(system, target, primary, secondary, patient)
+    t_map = time.perf_counter() - start
+    cells = m.reachable.size
+    print(f"map {len(primary)} x {len(secondary)} = {cells} cells: {m.reachable.sum()} reachable "
+          f"({100 * m.fraction:.1f} %)")
+    rng = np.random.default_rng(0)
+    sample = [(rng.integers(len(primary)), rng.integers(len(secondary))) for _ in range(20 if args.quick else 60)]
+    obstacles = patient.obstacles()
+    solved, start = 0, time.perf_counter()
+    for i, j in sample:
+        d = m.directions[i, j]
+        position = target - system.carm.orbital_offset * d
+        result = qp_ik.solve(system, qp_ik.AxisTarget(tuple(position), tuple(d)), obstacles=obstacles,
+                             options=qp_ik.QPIKOptions(safety_margin=0.02))
+        solved += bool(result.success)
+    t_qp = (time.perf_counter() - start) / len(sample) * cells
+    print(f"per-view qp_ik.solve loop: {solved} of {len(sample)} sampled cells solved (one descent per view, "
+          "distance fixed at the orbital offset)")
+    print(row("per-view qp_ik.solve loop (scaled to the map)", t_qp, unit="s"))
+    print(row("reach_map (free roll and distance, patient)", t_map, t_qp, unit="s"))
+    times = []
+    for i, j in sample:
+        view = View.from_angles(primary[i], secondary[j], target, patient)
+        start = time.perf_counter()
+        plan_view(system, view, patient, nearest=False)
+        times.append(time.perf_counter() - start)
+    print(row("plan_view median (no nearest-view search)", statistics.median(times), unit="ms"))
+
+
+if __name__ == "__main__":
+    main()

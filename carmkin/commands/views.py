@@ -1,0 +1,194 @@
+"""Clinical views with the patient on the table: plan one view, or map which views are reachable and clear.
+
+`carmkin views plan --primary-deg 30 --secondary-deg 20` plans the XA view (primary LAO +, RAO −;
+secondary CRA +, CAU −; degrees) of --target-mm (table frame, mm) for a patient lying on the table
+(--patient parametric, the default, sized by --patient-height-mm / --patient-mass-kg and placed by
+--patient-position, the DICOM Patient Position code; or --patient none). `--standard NAME` names a standard
+view instead (`carmkin views plan --standard list` lists them). It prints the joints (mm, deg), the clearance
+to patient, table and floor (mm), and when the view is unreachable the reason and the nearest reachable view.
+`carmkin views map` prints how many (primary, secondary) cells are reachable (default −90…90 × −45…45 at
+--step-deg 5); --plot writes the map as a figure, --html a static page with the sphere of view directions
+coloured by clearance, --json the cells. Exit 1 when a planned view is unreachable.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+import numpy as np
+
+from . import _common as common
+
+HELP = "plan clinical views (LAO/RAO, CRA/CAU) around a patient, map reachable views"
+MM = 1000.0
+
+
+def _common(parser: argparse.ArgumentParser) -> None:
+    common.add_preset_argument(parser)
+    parser.add_argument("--target-mm", metavar="X,Y,Z", default="0,0,0",
+                        help="the point the beam passes through, table frame (mm, default 0,0,0)")
+    parser.add_argument("--patient", choices=("parametric", "none"), default="parametric",
+                        help="a parametric patient lying on the table (default) or none")
+    parser.add_argument("--patient-position", default="HFS", metavar="CODE",
+                        help="DICOM Patient Position (HFS, HFP, HFDR, HFDL, FFS, FFP, FFDR, FFDL; default HFS)")
+    parser.add_argument("--patient-height-mm", type=common.number(400.0, 2800.0, unit="mm"), default=1750.0,
+                        help="body height (mm, default 1750)")
+    parser.add_argument("--patient-mass-kg", type=common.number(1.0, 650.0, unit="kg"), default=75.0,
+                        help="body mass (kg, default 75)")
+    parser.add_argument("--patient-chest-z-mm", type=common.number(-3000.0, 3000.0, unit="mm"), default=0.0,
+                        help="the chest (nipple line) along the table, Z0 (mm, default 0)")
+    parser.add_argument("--margin-mm", type=common.number(0.0, 1000.0, unit="mm"), default=20.0,
+                        help="clearance every moving part keeps (mm, default 20)")
+
+
+def register(parser: argparse.ArgumentParser) -> None:
+    sub = parser.add_subparsers(dest="action", required=True, metavar="ACTION", parser_class=type(parser))
+    plan = sub.add_parser("plan", help="plan one view", description=__doc__,
+                          formatter_class=argparse.RawDescriptionHelpFormatter)
+    _common(plan)
+    plan.add_argument("--primary-deg", type=common.number(-180.0, 180.0, unit="deg"), help="primary angle (LAO +, deg)")
+    plan.add_argument("--secondary-deg", type=common.number(-90.0, 90.0, unit="deg"), help="secondary angle (CRA +, deg)")
+    plan.add_argument("--standard", metavar="NAME", help="a standard view's name ('list' lists them)")
+    plan.add_argument("--distance-mm", type=common.number(0.0, 10000.0, open_minimum=True, unit="mm"),
+                      help="source-to-target distance (mm; default: free)")
+    plan.add_argument("--q-mm-deg", metavar="Q", help="current joints (mm, deg): the plan moves least from them")
+    plan.add_argument("--json", action="store_true", help="print the plan as JSON")
+    plan.set_defaults(action_run=_plan)
+    cmap = sub.add_parser("map", help="map reachable views", description=__doc__,
+                          formatter_class=argparse.RawDescriptionHelpFormatter)
+    _common(cmap)
+    cmap.add_argument("--primary-range-deg", metavar="LO,HI", default="-90,90", help="primary angles (deg)")
+    cmap.add_argument("--secondary-range-deg", metavar="LO,HI", default="-45,45", help="secondary angles (deg)")
+    cmap.add_argument("--step-deg", type=common.number(0.1, 90.0, unit="deg"), default=5.0, help="grid step (deg, default 5)")
+    cmap.add_argument("--plot", metavar="FILE", help="write the map as a figure (png, pdf, svg, ...)")
+    cmap.add_argument("--html", metavar="FILE", help="write a static page: the sphere of views coloured by clearance")
+    cmap.add_argument("--json", metavar="FILE", help="write the cells as JSON")
+    cmap.set_defaults(action_run=_map)
+
+
+def run(args: argparse.Namespace) -> int:
+    return args.action_run(args)
+
+
+def _patient(system, args):
+    from carmkin.patient import ParametricPatient
+
+    if args.patient == "none":
+        return None
+    return ParametricPatient.on_table(system, args.patient_height_mm / MM, args.patient_mass_kg, args.patient_position,
+                                      args.patient_chest_z_mm / MM)
+
+
+def _plan(args: argparse.Namespace) -> int:
+    from carmkin.views import View, plan_view
+    from carmkin.views.standard import STANDARD_VIEWS, standard_view
+
+    if args.standard == "list":
+        for v in STANDARD_VIEWS.values():
+            print(f"{v.name:20s} primary {v.primary_deg:+6.1f}°, secondary {v.secondary_deg:+6.1f}°  {v.description}"
+                  f"  [{v.source}]")
+        return 0
+    system = common.system_from_args(args)
+    target = common.parse_numbers(args.target_mm, 3, "--target-mm") / MM
+    patient = _patient(system, args)
+    position = patient if patient is not None else args.patient_position
+    distance = None if args.distance_mm is None else args.distance_mm / MM
+    if args.standard is not None:
+        if args.primary_deg is not None or args.secondary_deg is not None:
+            raise common.UsageError("--standard: give either a standard view or --primary-deg/--secondary-deg, not both")
+        view = standard_view(args.standard, target, position)
+        view = View(view.target, view.direction, distance, view.name)
+    elif args.primary_deg is None or args.secondary_deg is None:
+        raise common.UsageError("--primary-deg and --secondary-deg (or --standard NAME) are required")
+    else:
+        view = View.from_angles(args.primary_deg, args.secondary_deg, target, position, distance)
+    q_current = None if args.q_mm_deg is None else common.parse_joints(args.q_mm_deg, system, "--q-mm-deg")
+    plan = plan_view(system, view, patient, q_current, margin=args.margin_mm / MM)
+    if args.json:
+        print(json.dumps(_plan_json(system, plan, position), indent=2))
+    else:
+        _print_plan(system, plan, position)
+    return 0 if plan.success else 1
+
+
+def _describe_view(view, position) -> str:
+    p, s = view.angles(position)
+    return f"{abs(p):.1f}° {'LAO' if p >= 0 else 'RAO'}, {abs(s):.1f}° {'CRA' if s >= 0 else 'CAU'}"
+
+
+def _print_plan(system, plan, position) -> None:
+    print(f"view {plan.view.name or ''} {_describe_view(plan.view, position)}".replace("  ", " "))
+    if plan.success:
+        print(f"reachable: q = {common.format_joints(system, plan.q)}")
+        print(f"clearance {plan.clearance * MM:.1f} mm, source-to-target {plan.distance * MM:.1f} mm")
+        for m in plan.moves:
+            print(f"  move {m.joint}: {'clear' if m.clear else 'blocked'}" + (f" ({m.reason})" if m.reason else ""))
+        return
+    print(f"unreachable: {plan.reason}")
+    if plan.nearest is not None:
+        n = plan.nearest
+        print(f"nearest reachable view: {_describe_view(n.view, position)}, {np.degrees(plan.angle):.2f}° away, "
+              f"q = {common.format_joints(system, n.q)}, clearance {n.clearance * MM:.1f} mm")
+
+
+def _plan_json(system, plan, position) -> dict:
+    out = {"success": plan.success, "angles_deg": list(plan.view.angles(position)),
+           "reason": plan.reason, "binding": plan.binding}
+    if plan.success:
+        out.update(q=common.joints_json(system, plan.q), clearance_mm=plan.clearance * MM, distance_mm=plan.distance * MM)
+    if plan.nearest is not None:
+        out["nearest"] = {"angles_deg": list(plan.nearest.view.angles(position)), "angle_deg": float(np.degrees(plan.angle)),
+                          "q": common.joints_json(system, plan.nearest.q), "clearance_mm": plan.nearest.clearance * MM}
+    return out
+
+
+def _range(text, option, step):
+    lo, hi = common.parse_numbers(text, 2, option)
+
+    if lo > hi:
+        raise common.UsageError(f"{option} {text}: expected LO <= HI (deg)")
+    return np.arange(lo, hi + 1e-9, step)
+
+
+def _map(args: argparse.Namespace) -> int:
+    from carmkin.views import reach_map
+
+    system = common.system_from_args(args)
+    target = common.parse_numbers(args.target_mm, 3, "--target-mm") / MM
+    primary = _range(args.primary_range_deg, "--primary-range-deg", args.step_deg)
+    secondary = _range(args.secondary_range_deg, "--secondary-range-deg", args.step_deg)
+    paths = {k: v for k, v in (("plot", args.plot and common.plot_path(args.plot, "--plot")),
+                               ("html", args.html and common.output_path(args.html, "--html", ("html",))),
+                               ("json", args.json and common.output_path(args.json, "--json", ("json",)))) if v}
+    patient = _patient(system, args)
+    m = reach_map(system, target, primary, secondary, patient, position=patient or args.patient_position,
+                  margin=args.margin_mm / MM)
+    print(f"preset {system.name}: {int(m.reachable.sum())} of {m.reachable.size} views reachable "
+          f"({100 * m.fraction:.1f} %), primary {primary[0]:g}..{primary[-1]:g}°, secondary "
+          f"{secondary[0]:g}..{secondary[-1]:g}° at {args.step_deg:g}°")
+    for binding in ("angular/orbital", "translations", "contact"):
+        count = int(np.sum(m.binding == binding))
+        if count:
+            print(f"  unreachable by {binding}: {count}")
+    if m.reachable.any():
+        print(f"  clearance of the reachable views: {np.nanmin(m.clearance) * MM:.1f} .. {np.nanmax(m.clearance) * MM:.1f} mm")
+    if "plot" in paths:
+        from carmkin.views.figure import reach_map_figure
+
+        reach_map_figure(m).savefig(paths["plot"])
+        print(f"wrote {paths['plot']}")
+    if "html" in paths:
+        from carmkin.viz.views import reach_map_page
+
+        paths["html"].write_text(reach_map_page(system, m, patient), encoding="utf-8")
+        print(f"wrote {paths['html']}")
+    if "json" in paths:
+        cells = [{"primary_deg": float(p), "secondary_deg": float(s), "reachable": bool(m.reachable[i, j]),
+                  "clearance_mm": None if not m.reachable[i, j] else float(m.clearance[i, j] * MM),
+                  "binding": str(m.binding[i, j]),
+                  "q": common.joints_json(system, m.q[i, j]) if m.reachable[i, j] else None}
+                 for i, p in enumerate(m.primary_deg) for j, s in enumerate(m.secondary_deg)]
+        paths["json"].write_text(json.dumps({"target_mm": list(target * MM), "cells": cells}), encoding="utf-8")
+        print(f"wrote {paths['json']}")
+    return 0

@@ -1,0 +1,90 @@
+"""Reachability maps: which XA views of a target a system can take, with the patient in the world.
+
+:func:`reach_map` searches every (primary, secondary) cell with the one search of
+:mod:`carmkin.views.search` — the same as :func:`~carmkin.views.plan_view` with no ``q_current`` — all
+cells at once: closed-form families over the wigwag samples with their exact distance intervals, a cheap
+bounding-volume score, exact coal distances only for the candidates that decide. Angles in degrees at the
+boundary, lengths in m.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from carmkin.errors import ViewError
+from carmkin.validation import real_array, real_scalar
+
+from . import search
+from .plan import DEFAULT_MARGIN, beam_directions, reference, world_for
+from .view import _patient_frame, _point
+
+
+@dataclass(frozen=True)
+class ReachMap:
+    """``primary_deg`` (P,), ``secondary_deg`` (S,); per cell ``reachable`` (P, S), ``q`` (P, S, nq) (NaN
+    where unreachable), ``clearance`` (P, S) exact (m), ``distance`` (P, S) source–target (m), ``binding``
+    (P, S) the constraint that binds an unreachable cell (a joint group or ``"contact"``), ``reason`` (P, S)
+    its sentence; ``directions`` (P, S, 3) the beams (table frame), ``target`` (3,) m."""
+
+    primary_deg: np.ndarray
+    secondary_deg: np.ndarray
+    target: np.ndarray
+    directions: np.ndarray
+    reachable: np.ndarray
+    q: np.ndarray
+    clearance: np.ndarray
+    distance: np.ndarray
+    binding: np.ndarray
+    reason: np.ndarray
+
+    @property
+    def fraction(self) -> float:
+        """Share of the cells that are reachable."""
+        return float(self.reachable.mean())
+
+
+def _angles(value, name, low, high) -> np.ndarray:
+    a = real_array(value, name, error=ViewError, unit="deg")
+    a = np.atleast_1d(a)
+    if a.ndim != 1 or not len(a):
+        raise ViewError(f"{name} must be a non-empty 1-D array of angles (deg), got shape {a.shape}")
+    if np.any(a < low) or np.any(a > high):
+        raise ViewError(f"{name} must lie in [{low:g}, {high:g}] deg, got {a.min():g}..{a.max():g}")
+    return a
+
+
+def reach_map(system, target, primary_deg=np.arange(-90, 91), secondary_deg=np.arange(-45, 46), patient=None, *,
+              position=None, margin: float = DEFAULT_MARGIN, table_samples=None) -> ReachMap:
+    """The map of ``target`` (3,) m (table frame) over ``primary_deg`` × ``secondary_deg`` (XA angles, deg,
+    LAO +, CRA +) for a patient (model or list of Obstacle) in ``position`` (a Patient Position code or
+    pose; default the patient model's, else HFS)."""
+    target = _point(target, "target")
+    p = _angles(primary_deg, "primary_deg", -180.0, 180.0)
+    s = _angles(secondary_deg, "secondary_deg", -90.0, 90.0)
+    if position is None:
+        position = patient if patient is not None and hasattr(patient, "pose") else "HFS"
+    R = _patient_frame(position)[:3, :3]
+    P, S = np.meshgrid(np.radians(p), np.radians(s), indexing="ij")
+    directions = beam_directions(R, P.ravel(), S.ravel())
+    world = world_for(system, patient)
+    margin = real_scalar(margin, "margin", error=ViewError, low=0.0, high=1.0, unit="m")
+    ctx = search.make_context(system, world, margin, reference(system, None), table_samples)
+    n = len(directions)
+    ranges = np.tile([0.0, system.carm.source_to_detector], (n, 1))
+    out = search.solve_cells(ctx, np.tile(target, (n, 1)), directions, ranges)
+    shape = (len(p), len(s))
+    return ReachMap(p, s, target, directions.reshape(shape + (3,)), out.reachable.reshape(shape),
+                    out.q.reshape(shape + (system.nq,)), out.clearance.reshape(shape), out.distance.reshape(shape),
+                    out.binding.reshape(shape), out.reason.reshape(shape))
+
+
+def carm_alone(system):
+    """``system`` with the table translation held at 0 (range [0, 0]): the 5-DOF C-arm of §4.6.1 beside a
+    fixed table, as a system of the same joints."""
+    import dataclasses
+
+    from carmkin.model.params import JointRange
+
+    return system.replace(table=dataclasses.replace(system.table, translation=JointRange(0.0, 0.0, "table_translation")))

@@ -1,0 +1,271 @@
+"""Plan one view: joints, clearance, the moves from where the C-arm is, and the nearest view when it fails.
+
+:func:`plan_view` runs the search of :mod:`carmkin.views.search` on one cell (so it answers exactly as
+:func:`~carmkin.views.reach_map` does for that cell), then
+
+* with ``q_current``: the joint-by-joint moves to the plan in the manual order of
+  :data:`carmkin.reposition.guidance.DEFAULT_ORDER`, each swept for collision by conservative advancement
+  (:func:`carmkin.reposition.guidance.sweep`, as repositioning does);
+* when the view is unreachable: the **nearest reachable view** (smallest angle between beam axes, same
+  target), searched in bands of :data:`NEAREST_BAND` of angle; each band holds rings of directions
+  about the axis and the integer-degree (primary, secondary) grid directions of the patient in that band,
+  so the answer is never farther than the nearest reachable cell of an integer-degree map.
+
+Lengths in m, angles in rad (the reason texts speak mm and degrees).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from carmkin.errors import PatientModelError, ViewError
+from carmkin.robot.collision import Obstacle
+from carmkin.validation import real_array, real_scalar
+
+from . import search
+from .view import View, _patient_frame
+
+#: Default clearance (m) every moving part keeps from patient, table and floor.
+DEFAULT_MARGIN = 0.02
+#: Clearance (m) kept along the swept moves (below the margin, so the goal's neighbourhood is reachable).
+PATH_CLEARANCE = 0.01
+#: A patient may rest on the table top but not sink into it by more than this (m).
+PATIENT_TABLE_TOLERANCE = 0.001
+#: Angular band (rad) of the nearest-view search, and its last angle.
+NEAREST_BAND = math.radians(2.0)
+NEAREST_LIMIT = math.radians(180.0)
+#: Ring directions of the nearest-view search: azimuth spacing (deg) and exact checks per direction (the grid
+#: directions get the full search of a map cell, so the answer is never behind an integer-degree map).
+RING_SPACING_DEG = 2.0
+RING_CHECKS = 8
+
+
+@dataclass(frozen=True)
+class Move:
+    """One joint moved alone from ``start`` to ``end`` (m or rad); ``clear`` with its swept ``min_distance``."""
+
+    joint: str
+    start: float
+    end: float
+    clear: bool
+    min_distance: float
+    reason: str | None = None
+
+
+@dataclass(frozen=True)
+class ViewPlan:
+    """A planned view. ``success``; ``q`` (nq,) (NaN when unreachable); ``clearance`` exact (m) to patient,
+    table and floor; ``distance`` source–target (m); ``reason`` and ``binding`` (a joint group or
+    ``"contact"``) when unreachable; ``moves`` from ``q_current``; ``nearest``: the plan of the nearest
+    reachable view (unreachable views only) and ``angle`` (rad) between the beams."""
+
+    view: View
+    success: bool
+    q: np.ndarray
+    clearance: float
+    distance: float
+    reason: str | None
+    binding: str
+    moves: tuple = ()
+    nearest: "ViewPlan | None" = None
+    angle: float = 0.0
+
+
+def patient_obstacles(patient) -> tuple:
+    """``patient`` as obstacles: None, a list of :class:`Obstacle`, or a model with ``obstacles()``."""
+    if patient is None:
+        return ()
+    if hasattr(patient, "obstacles") and callable(patient.obstacles):
+        patient = patient.obstacles()
+    if isinstance(patient, Obstacle):
+        patient = [patient]
+    try:
+        items = tuple(patient)
+    except TypeError:
+        raise PatientModelError(f"patient must be a patient model or a list of Obstacle, got {type(patient).__name__}")
+    for item in items:
+        if not isinstance(item, Obstacle):
+            raise PatientModelError(f"patient must be a patient model or a list of Obstacle, got an item "
+                                    f"{type(item).__name__}")
+    return items
+
+
+def _key(system, obstacles):
+    return system, tuple((o.name, o.shape, o.size, o.pose.tobytes()) for o in obstacles)
+
+
+@functools.lru_cache(maxsize=8)
+def _world_cached(key):
+    from .clearance import World
+
+    system, described = key
+    obstacles = [Obstacle(n, s, z, np.frombuffer(p).reshape(4, 4)) for n, s, z, p in described]
+    world = World(system, obstacles)
+    _check_resting(world, obstacles)
+    return world
+
+
+def world_for(system, patient):
+    """The collision world of ``system`` with ``patient`` (cached per system and obstacle list)."""
+    return _world_cached(_key(system, patient_obstacles(patient)))
+
+
+def _check_resting(world, obstacles) -> None:
+    import coal
+
+    objects = world.scene.geometry_model.geometryObjects
+    table = [o for o in objects if o.name.startswith("table_")]
+    for obstacle in obstacles:
+        geometry, pose = obstacle.geometry(), coal.Transform3s(obstacle.pose[:3, :3], obstacle.pose[:3, 3])
+        for t in table:
+            request, result = coal.DistanceRequest(), coal.DistanceResult()
+            request.enable_signed_distance = True
+            tf = coal.Transform3s(t.placement.rotation, t.placement.translation)
+            d = coal.distance(geometry, pose, t.geometry, tf, request, result)
+            if d < -PATIENT_TABLE_TOLERANCE:
+                raise PatientModelError(f"patient part {obstacle.name!r} sinks {-d * 1e3:.1f} mm into the table top "
+                                        f"(at most {PATIENT_TABLE_TOLERANCE * 1e3:.0f} mm): place it on the table")
+
+
+def reference(system, q_current) -> np.ndarray:
+    """The search's reference configuration: ``q_current`` or the middle of the ranges."""
+    if q_current is None:
+        return 0.5 * (system.lower + system.upper)
+    from carmkin.errors import InvalidConfigurationError
+    from carmkin.validation import JOINT_VALUE_LIMIT
+
+    return real_array(q_current, "q_current", (system.nq,), error=InvalidConfigurationError, limit=JOINT_VALUE_LIMIT,
+                      unit="m, rad")
+
+
+def distance_range(system, view: View) -> np.ndarray:
+    """(1, 2) source–target distances (m): the view's, or the target anywhere between source and detector."""
+    if view.distance is not None:
+        return np.array([[view.distance, view.distance]])
+    return np.array([[0.0, system.carm.source_to_detector]])
+
+
+def _resolve(view, patient) -> View:
+    if isinstance(view, View):
+        return view
+    if isinstance(view, str):
+        from .standard import standard_view
+
+        return standard_view(view, position=patient if patient is not None and hasattr(patient, "pose") else "HFS")
+    raise ViewError(f"view must be a carmkin.views.View or a standard view name, got {type(view).__name__}")
+
+
+def plan_view(system, view, patient=None, q_current=None, *, margin: float = DEFAULT_MARGIN,
+              nearest: bool = True, table_samples=None) -> ViewPlan:
+    """Plan ``view`` (a :class:`View`, or a standard view's name: its target is then the table origin) on
+    any ``system``: free roll and distance used for clearance (≥ ``margin``, m), then least motion from
+    ``q_current`` (nq,) (default mid-range). ``patient``: a patient model or a list of
+    :class:`~carmkin.robot.collision.Obstacle`. ``table_samples``: held configurations (k, nq) whose table
+    joints a motorized table may take (default: those of the reference)."""
+    view = _resolve(view, patient)
+    margin = real_scalar(margin, "margin", error=ViewError, low=0.0, high=1.0, unit="m")
+    world = world_for(system, patient)
+    q_ref = reference(system, q_current)
+    ctx = search.make_context(system, world, margin, q_ref, table_samples)
+    plan = _plan_cells(ctx, [view])[0]
+    if plan.success and q_current is not None:
+        plan = _with_moves(plan, system, world, q_ref)
+    if not plan.success and nearest:
+        plan = _with_nearest(plan, ctx, view, patient)
+    return plan
+
+
+def _plan_cells(ctx, views) -> list[ViewPlan]:
+    targets = np.array([v.target for v in views])
+    directions = np.array([v.direction for v in views])
+    ranges = np.vstack([distance_range(ctx.system, v) for v in views])
+    out = search.solve_cells(ctx, targets, directions, ranges)
+    return [ViewPlan(v, bool(out.reachable[i]), out.q[i], float(out.clearance[i]), float(out.distance[i]),
+                     out.reason[i], str(out.binding[i])) for i, v in enumerate(views)]
+
+
+def _with_moves(plan: ViewPlan, system, world, q_from) -> ViewPlan:
+    from carmkin.reposition.guidance import DEFAULT_ORDER, GuidanceOptions, sweep
+
+    order = [system.joint_names.index(n) for n in DEFAULT_ORDER if n in system.joint_names]
+    order += [k for k in range(system.nq) if k not in order]
+    q, moves, pending = np.array(q_from, dtype=float), [], [k for k in order if q_from[k] != plan.q[k]]
+    lever = GuidanceOptions().lever_arm
+    while pending:
+        for k in pending:
+            target = q.copy()
+            target[k] = plan.q[k]
+            check = sweep(system, world.scene, q, target, PATH_CLEARANCE, lever)
+            if check.clear:
+                moves.append(Move(system.joint_names[k], float(q[k]), float(plan.q[k]), True, check.min_distance))
+                q, pending = target, [j for j in pending if j != k]
+                break
+        else:
+            k = pending[0]
+            moves.append(Move(system.joint_names[k], float(q[k]), float(plan.q[k]), False, check.min_distance,
+                              f"no joint can move alone without contact ({check.reason})"))
+            break
+    return _replace(plan, moves=tuple(moves))
+
+
+def _replace(plan, **changes):
+    import dataclasses
+
+    return dataclasses.replace(plan, **changes)
+
+
+def _band_directions(view: View, lo: float, hi: float, frame) -> tuple[np.ndarray, np.ndarray]:
+    """``(rings, grid)``: directions at angles [lo, hi) from the view's axis — rings every 1° of angle with
+    azimuths ≤ :data:`RING_SPACING_DEG` apart, and the integer-degree grid of XA angles in the patient ``frame``."""
+    z = view.axis
+    e1 = np.cross(z, np.eye(3)[int(np.argmin(np.abs(z)))])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(z, e1)
+    rings = [np.zeros((0, 3))]
+    for a in np.arange(max(lo, math.radians(1.0)), hi, math.radians(1.0)):
+        n = max(8, int(math.ceil(360 * math.sin(a) / RING_SPACING_DEG)))
+        phi = np.linspace(0, 2 * math.pi, n, endpoint=False)[:, None]
+        rings.append(math.cos(a) * z + math.sin(a) * (np.cos(phi) * e1 + np.sin(phi) * e2))
+    grid = _grid_directions(frame.tobytes())
+    angle = np.arccos(np.clip(grid @ z, -1, 1))
+    return np.vstack(rings), grid[(angle >= lo) & (angle < hi)]
+
+
+@functools.lru_cache(maxsize=4)
+def _grid_directions(frame_bytes) -> np.ndarray:
+    R = np.frombuffer(frame_bytes).reshape(4, 4)[:3, :3]
+    p, s = np.meshgrid(np.radians(np.arange(-180, 180)), np.radians(np.arange(-90, 91)), indexing="ij")
+    return beam_directions(R, p.ravel(), s.ravel())
+
+
+def beam_directions(R_patient, primary, secondary) -> np.ndarray:
+    """Beam directions (N, 3, table frame) of XA angles (rad, arrays (N,)) for a patient whose LPS axes are
+    the columns of ``R_patient``: minus the positioner's Yp (:mod:`carmkin.interop.dicom`), i.e.
+    ``(sin p cos s, −cos p cos s, sin s)`` in LPS."""
+    d = np.column_stack((np.sin(primary) * np.cos(secondary), -np.cos(primary) * np.cos(secondary), np.sin(secondary)))
+    return d @ np.asarray(R_patient).T
+
+
+def _with_nearest(plan: ViewPlan, ctx, view: View, patient) -> ViewPlan:
+    import dataclasses
+
+    frame = _patient_frame(patient if patient is not None and hasattr(patient, "pose") else "HFS")
+    quick = dataclasses.replace(ctx, max_checks=RING_CHECKS)
+    lo = 0.0
+    while lo < NEAREST_LIMIT:
+        hi = lo + NEAREST_BAND
+        rings, grid = _band_directions(view, lo, hi, frame)
+        plans = []
+        for directions, context in ((grid, ctx), (rings, quick)):
+            if len(directions):
+                views = [View(view.target, tuple(d), view.distance, f"nearest to {view.name}".strip()) for d in directions]
+                plans += [p for p in _plan_cells(context, views) if p.success]
+        if plans:
+            best = min(plans, key=lambda p: (round(view.angle_to(p.view), 12), -p.clearance))
+            return _replace(plan, nearest=best, angle=view.angle_to(best.view))
+        lo = hi
+    return plan

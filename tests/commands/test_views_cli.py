@@ -1,0 +1,54 @@
+"""`carmkin views plan|map`: degrees and mm in, one line per usage error (exit 2), exit 1 when unreachable."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from carmkin.cli import main
+
+
+def run(*args):
+    return subprocess.run([sys.executable, "-m", "carmkin.cli", "views", *args], capture_output=True, text=True,
+                          timeout=300)
+
+
+def test_plan_prints_joints_and_clearance(capsys):
+    assert main(["views", "plan", "--primary-deg", "30", "--secondary-deg", "20"]) == 0
+    out = capsys.readouterr().out
+    assert "30.0° LAO, 20.0° CRA" in out and "clearance" in out and "wigwag=" in out
+
+
+def test_plan_json_and_standard_view(capsys):
+    assert main(["views", "plan", "--standard", "pelvis-inlet", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["success"] and data["angles_deg"][1] == pytest.approx(40.0)
+
+
+def test_unreachable_exits_1_with_the_nearest_view(capsys):
+    assert main(["views", "plan", "--primary-deg", "-70", "--secondary-deg", "35"]) == 1
+    out = capsys.readouterr().out
+    assert "unreachable" in out and "nearest reachable view" in out
+
+
+@pytest.mark.parametrize("args", [["plan", "--primary-deg", "abc", "--secondary-deg", "0"],
+                                  ["plan", "--primary-deg", "10"],
+                                  ["plan", "--standard", "nope"],
+                                  ["plan", "--standard", "ap", "--primary-deg", "3"],
+                                  ["plan", "--primary-deg", "0", "--secondary-deg", "0", "--patient-position", "XX"],
+                                  ["map", "--primary-range-deg", "10,-10"]])
+def test_usage_errors_are_one_line(args):
+    result = run(*args)
+    assert result.returncode == 2, result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1 and "Traceback" not in result.stderr
+
+
+def test_map_writes_json_plot_and_page(tmp_path, capsys):
+    paths = [tmp_path / "m.json", tmp_path / "m.png", tmp_path / "m.html"]
+    assert main(["views", "map", "--step-deg", "30", "--json", str(paths[0]), "--plot", str(paths[1]),
+                 "--html", str(paths[2])]) == 0
+    out = capsys.readouterr().out
+    assert "views reachable" in out
+    cells = json.loads(paths[0].read_text())["cells"]
+    assert len(cells) == 7 * 4 and all(p.exists() and p.stat().st_size for p in paths)

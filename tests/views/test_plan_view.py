@@ -1,0 +1,147 @@
+"""plan_view: completeness on views built from collision-free configurations (three systems), the DICOM round
+trip for every Patient Position, moves swept from q_current, typed errors for bad input."""
+
+import math
+
+import numpy as np
+import pytest
+from conftest import SYSTEMS
+
+from carmkin.errors import CarmkinError, PatientModelError, ViewError
+from carmkin.imaging.projection import PATIENT_POSITIONS
+from carmkin.interop.dicom import xa_angles
+from carmkin.patient import ParametricPatient
+from carmkin.robot import validity
+from carmkin.robot.collision import CollisionScene
+from carmkin.views import DEFAULT_MARGIN, View, plan_view
+from carmkin.views.standard import STANDARD_VIEWS
+
+#: XA angles read back from FK agree to this (deg); every answer comes from a closed form.
+ANGLE_TOLERANCE_DEG = 1e-9
+
+
+def _views_from_configurations(system, patient, count, rng):
+    scene = CollisionScene.from_system(system, patient.obstacles())
+    out = []
+    while len(out) < count:
+        q = system.lower + rng.random(system.nq) * (system.upper - system.lower)
+        if not validity.check(system, q, margin=DEFAULT_MARGIN, scene=scene).reachable:
+            continue
+        T = system.fk(q)
+        s = rng.uniform(0.05, system.carm.source_to_detector - 0.05)
+        out.append((q, View(tuple(T[:3, 3] + s * T[:3, 2]), tuple(T[:3, 2]))))
+    return out
+
+
+@pytest.mark.parametrize("name", ["6-DOF", "non-isocentric", "motorized"])
+def test_every_view_of_a_collision_free_configuration_is_planned(name):
+    system = SYSTEMS[name]
+    patient = ParametricPatient.on_table(system)
+    rng = np.random.default_rng(7)
+    scene = CollisionScene.from_system(system, patient.obstacles())
+    missed = []
+    views = _views_from_configurations(system, patient, 170, rng)
+    for q, view in views:
+        # The motorized table stays where it is (its joints are held at q_current's); the C-arm moves.
+        plan = plan_view(system, view, patient, q_current=q if system.table.joints else None, nearest=False)
+        if not plan.success:
+            missed.append((q, plan.reason))
+            continue
+        T = system.fk(plan.q)
+        assert np.linalg.norm(T[:3, 2] - view.axis) < 1e-9
+        assert validity.check(system, plan.q, margin=DEFAULT_MARGIN, scene=scene).reachable
+    print(f"\n{name}: {len(views) - len(missed)} of {len(views)} views of collision-free configurations planned")
+    assert not missed, missed[:3]
+
+
+@pytest.mark.parametrize("position", list(PATIENT_POSITIONS))
+def test_dicom_round_trip_for_every_patient_position(position):
+    system = SYSTEMS["6-DOF"]
+    patient = ParametricPatient.on_table(system, position=position)
+    planned = 0
+    for p, s in ((0.0, 0.0), (30.0, 20.0), (-25.0, -15.0), (60.0, 10.0), (-90.0, 0.0), (120.0, 30.0)):
+        plan = plan_view(system, View.from_angles(p, s, (0.0, 0.0, 0.0), patient), patient, nearest=False)
+        if not plan.success:
+            continue
+        p2, s2, _ = xa_angles(system.fk(plan.q), patient.pose())
+        assert abs((p2 - p + 180.0) % 360.0 - 180.0) < ANGLE_TOLERANCE_DEG
+        assert abs(s2 - s) < ANGLE_TOLERANCE_DEG
+        planned += 1
+    assert planned >= 2
+
+
+def test_standard_views_have_a_source_and_plan():
+    system = SYSTEMS["6-DOF"]
+    patient = ParametricPatient.on_table(system)
+    for name, v in STANDARD_VIEWS.items():
+        assert v.source
+        plan = plan_view(system, name, patient, nearest=False)
+        assert plan.success or plan.reason
+        assert View.from_angles(v.primary_deg, v.secondary_deg, (0, 0, 0), patient).angle_to(plan.view) < 1e-12
+
+
+def test_moves_from_q_current_are_swept():
+    system = SYSTEMS["6-DOF"]
+    patient = ParametricPatient.on_table(system)
+    start = plan_view(system, "ap", patient).q
+    plan = plan_view(system, View.from_angles(30, 20, (0, 0, 0), patient), patient, q_current=start)
+    assert plan.success and plan.moves
+    q = start.copy()
+    for move in plan.moves:
+        assert move.clear
+        q[system.joint_names.index(move.joint)] = move.end
+    np.testing.assert_allclose(q, plan.q, atol=0)
+
+
+def test_perpendicular_views_are_perpendicular():
+    a, b = np.array([0.01, -0.05, 0.02]), np.array([0.05, -0.02, 0.09])
+    views = View.perpendicular_to(a, b, count=12)
+    for v in views:
+        assert abs(v.axis @ (b - a)) < 1e-12
+    system = SYSTEMS["6-DOF"]
+    patient = ParametricPatient.on_table(system)
+    plans = [plan_view(system, v, patient, nearest=False) for v in views]
+    assert any(p.success for p in plans)
+
+
+@pytest.mark.parametrize("call", [
+    lambda: View.from_angles("30", 20, (0, 0, 0)),
+    lambda: View.from_angles(30, 95, (0, 0, 0)),
+    lambda: View.from_angles(30, 20, (0, float("nan"), 0)),
+    lambda: View.from_angles(30, 20, (0, 0, 0), position="XYZ"),
+    lambda: View((0, 0, 0), (0, 0, 0)),
+    lambda: View.perpendicular_to((0, 0, 0), (0, 0, 0)),
+    lambda: plan_view(SYSTEMS["6-DOF"], "no-such-view"),
+    lambda: plan_view(SYSTEMS["6-DOF"], View((0, 0, 0), (0, 0, 1)), patient=[1, 2]),
+    lambda: plan_view(SYSTEMS["6-DOF"], View((0, 0, 0), (0, 0, 1)), q_current=[0.0] * 5),
+])
+def test_bad_input_is_a_typed_error(call):
+    with pytest.raises(CarmkinError):
+        call()
+
+
+def test_patient_sinking_into_the_table_is_refused():
+    system = SYSTEMS["6-DOF"]
+    with pytest.raises(PatientModelError, match="sinks"):
+        plan_view(system, View((0, 0, 0), (0, 0, 1)), ParametricPatient(origin=(0.0, 0.3, 0.0)), nearest=False)
+
+
+def test_out_of_reach_target_is_an_unreachable_plan_with_its_reason():
+    plan = plan_view(SYSTEMS["6-DOF"], View.from_angles(0, 0, (3.0, 0.0, 0.0)), nearest=False)
+    assert not plan.success and "joint limits" in plan.reason and np.all(np.isnan(plan.q))
+
+
+def test_no_plan_touches_the_patient():
+    system = SYSTEMS["6-DOF"]
+    patient = ParametricPatient.on_table(system, mass=140.0)
+    scene = CollisionScene.from_system(system, patient.obstacles())
+    rng = np.random.default_rng(3)
+    for p, s in rng.uniform([-180, -90], [180, 90], (40, 2)):
+        plan = plan_view(system, View.from_angles(p, s, (0.0, -0.05, 0.0), patient), patient, nearest=False)
+        if plan.success:
+            assert validity.check(system, plan.q, margin=DEFAULT_MARGIN, scene=scene).reachable
+        else:
+            assert plan.reason
+    assert math.isfinite(DEFAULT_MARGIN)
+    with pytest.raises(ViewError):
+        plan_view(system, "ap", patient, margin=-1.0)
