@@ -173,15 +173,9 @@ class Sweep:
 
 
 def _patient(patient) -> tuple:
-    from carmkin.robot.collision import Obstacle
+    from carmkin.patient.obstacles import as_obstacles
 
-    if patient is None:
-        return ()
-    items = [patient] if isinstance(patient, Obstacle) else list(patient)
-    for item in items:
-        if not isinstance(item, Obstacle):
-            raise SweepError(f"patient must be a list of carmkin.robot.collision.Obstacle, got {type(item).__name__}")
-    return tuple(items)
+    return as_obstacles(patient, SweepError)
 
 
 def _reference(system, w: np.ndarray, q_start, target, distance):
@@ -250,8 +244,9 @@ def plan_sweep(system, target, arc_deg: float = 190.0, n_views: int = 100, patie
                margin: float = DEFAULT_MARGIN, tolerance: float = DEFAULT_TOLERANCE) -> Sweep:
     """Plan a sweep of ``n_views`` frames over ``arc_deg`` degrees about ``joint`` around ``target``.
 
-    ``target`` (3,) m in the table frame; ``patient``: a list of :class:`carmkin.robot.collision.Obstacle`
-    (e.g. a box patient) checked with the table and the floor; ``q_start`` (nq,): joints whose orientation
+    ``target`` (3,) m in the table frame; ``patient``: the toolkit's patient model
+    (:class:`carmkin.patient.ParametricPatient`, :class:`carmkin.patient.CTPatient`) or a list of
+    :class:`carmkin.robot.collision.Obstacle` (e.g. a box patient) checked with the table and the floor; ``q_start`` (nq,): joints whose orientation
     starts the arc (default: the arc is centred on the rotating joints' mid-range, other revolute joints at 0
     where in range); ``joint``: a revolute joint name or a mapping of names to weights (combined motion);
     ``distance``: source-to-target distance (m, default the C-arm's source-to-orbital-axis L = l2 + a1, the

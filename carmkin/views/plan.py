@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from carmkin.errors import PatientModelError, ViewError
+from carmkin.patient.obstacles import as_obstacles
 from carmkin.robot.collision import Obstacle
 from carmkin.validation import real_array, real_scalar
 
@@ -77,21 +78,7 @@ class ViewPlan:
 
 def patient_obstacles(patient) -> tuple:
     """``patient`` as obstacles: None, a list of :class:`Obstacle`, or a model with ``obstacles()``."""
-    if patient is None:
-        return ()
-    if hasattr(patient, "obstacles") and callable(patient.obstacles):
-        patient = patient.obstacles()
-    if isinstance(patient, Obstacle):
-        patient = [patient]
-    try:
-        items = tuple(patient)
-    except TypeError:
-        raise PatientModelError(f"patient must be a patient model or a list of Obstacle, got {type(patient).__name__}")
-    for item in items:
-        if not isinstance(item, Obstacle):
-            raise PatientModelError(f"patient must be a patient model or a list of Obstacle, got an item "
-                                    f"{type(item).__name__}")
-    return items
+    return as_obstacles(patient, PatientModelError)
 
 
 def _key(system, obstacles):

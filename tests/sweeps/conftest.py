@@ -3,11 +3,9 @@
 import pytest
 from strategies import PRESET
 
-from carmkin.robot.collision import Obstacle
-from carmkin.sweeps import plan_sweep
+from sweep_patient import PATIENT
 
-#: A box patient on the preset's table top (surface at y = 0.15 m, Y0 down): 0.5 m wide, 0.3 m thick.
-PATIENT = [Obstacle.box("patient", (0.5, 0.3, 1.6), center=(0.0, 0.0, 0.0))]
+from carmkin.sweeps import plan_sweep
 
 
 @pytest.fixture(scope="session")

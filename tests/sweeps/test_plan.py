@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import PATIENT
+from sweep_patient import PATIENT
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from strategies import PRESET, configurations, motorized_systems, systems
@@ -153,3 +153,18 @@ def test_garbage_input_is_refused_with_a_typed_error(arc, views, target):
             plan_sweep(PRESET, target, arc_deg=arc, n_views=views, margin=0.0)
         except carmkin.CarmkinError:
             pass
+
+
+def test_the_toolkits_patient_model_is_accepted_as_its_obstacles():
+    """``patient=`` as in views: a ParametricPatient sweeps exactly as the list of its obstacles does."""
+    from carmkin.patient import ParametricPatient
+
+    patient = ParametricPatient.on_table(PRESET)
+    target = np.array([0.0, -0.15, 0.0])  # above the chest, inside the body's outline
+    as_model = plan_sweep(PRESET, target, arc_deg=60.0, n_views=7, patient=patient)
+    as_list = plan_sweep(PRESET, target, arc_deg=60.0, n_views=7, patient=patient.obstacles())
+    assert as_model.success == as_list.success
+    np.testing.assert_array_equal(as_model.q, as_list.q)
+    assert as_model.min_clearance == as_list.min_clearance
+    with pytest.raises(SweepError, match="patient"):
+        plan_sweep(PRESET, target, arc_deg=60.0, n_views=7, patient="a patient")

@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from conftest import PATIENT
+from sweep_patient import PATIENT
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from strategies import PRESET, configurations, motorized_systems

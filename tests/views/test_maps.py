@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import TARGET
+from view_systems import TARGET
 
 from carmkin import analytic_ik
 from carmkin.interop.dicom import pose_from_xa_angles

@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import SYSTEMS
+from view_systems import SYSTEMS
 
 from carmkin.errors import CarmkinError, PatientModelError, ViewError
 from carmkin.imaging.projection import PATIENT_POSITIONS
