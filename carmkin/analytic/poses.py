@@ -55,7 +55,8 @@ def pose_rows(T, name: str = "T"):
     rows = T.tolist()
     (a, b, c, px), (d, e, f, py), (g, h, i, pz), last = rows
     ok = (math.isfinite(a + b + c + d + e + f + g + h + i) and last == [0.0, 0.0, 0.0, 1.0]
-          and max(abs(px), abs(py), abs(pz)) <= MAGNITUDE_LIMIT)  # NaN fails the comparison
+          and abs(px) <= MAGNITUDE_LIMIT and abs(py) <= MAGNITUDE_LIMIT and abs(pz) <= MAGNITUDE_LIMIT)
+    # each comparison separately: NaN fails it (max(0.6, nan) is 0.6 and would let a NaN translation through)
     if ok:
         ortho, det = rigidity(a, b, c, d, e, f, g, h, i)
         ok = ortho <= RIGID_TOLERANCE * RIGID_TOLERANCE and abs(det - 1.0) <= RIGID_TOLERANCE

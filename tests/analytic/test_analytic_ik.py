@@ -502,3 +502,15 @@ def test_cli_exit_codes(capsys, tmp_path):
     bad.write_text('{"position_mm": [0, 0, 0]}')
     assert main(["ik", "--pose-file", str(bad)]) == 2
     assert "rotation_vector_deg" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("entry", [0, 1, 2])
+def test_a_nan_translation_is_refused_on_the_fast_path(entry):
+    """An exactly rigid rotation with one NaN translation entry passed the fast rigidity check (the bound was
+    ``max(|px|, |py|, |pz|)``, and ``max(0.6, nan)`` is 0.6) and reached the singular solver (found by
+    benchmarks/fuzz.py)."""
+    system = carmkin.load_preset("siremobile-iso-c3d")
+    T = system.fk(np.array([0.1, 0.2, 0.05, 0.1, math.pi / 2, 0.3]))
+    T[entry, 3] = np.nan
+    with pytest.raises(carmkin.errors.InvalidPoseError, match="finite"):
+        carmkin.analytic_ik.solve(system, T)
