@@ -28,6 +28,10 @@ def _sphere(obj) -> tuple[np.ndarray, float]:
     return centre, float(geometry.aabb_radius)
 
 
+#: Inscribed spheres per box axis in the certain-contact test.
+INSCRIBED_PER_AXIS = 5
+
+
 class World:
     """The collision world of ``system`` with ``obstacles`` (table frame), built once."""
 
@@ -51,7 +55,7 @@ class World:
         # Pairs against a body fixed to the table frame get the exact distance from the moving sphere's centre
         # to that body as their bound (a 2 m table top's own sphere would bound nothing): boxes one by one,
         # capsules and spheres all at once as segments.
-        self._boxes, seg_pairs, seg = [], [], []
+        box_pairs, box_objects, seg_pairs, seg = [], [], [], []
         for g in np.unique(self.second).tolist():
             o = objects[g]
             if o.parentJoint != 0:
@@ -59,13 +63,16 @@ class World:
             ks = np.flatnonzero(self.second == g)
             kind = type(o.geometry).__name__
             if kind == "Box":
-                self._boxes.append((o, ks))
+                box_pairs += ks.tolist()
+                box_objects += [o] * len(ks)
             elif kind in ("Capsule", "Sphere"):
                 half = o.geometry.halfLength if kind == "Capsule" else 0.0
                 axis = o.placement.rotation[:, 2] * half
                 for k in ks.tolist():
                     seg_pairs.append(k)
                     seg.append((o.placement.translation - axis, 2 * axis, o.geometry.radius))
+        self._box_pairs = np.array(box_pairs, dtype=int)
+        self._box_set = _Fixed(box_objects)
         self._seg_pairs = np.array(seg_pairs, dtype=int)
         self._seg_a = np.array([a for a, _, _ in seg]).reshape(-1, 3)
         self._seg_v = np.array([v for _, v, _ in seg]).reshape(-1, 3)
@@ -74,7 +81,7 @@ class World:
         self._beam_parts = self._beam_spheres(objects)
         self._inscribed = self._inscribed_spheres(objects)
         names = {o.name for o in self.obstacles}
-        self._environment = [o for o in objects if o.name in names or link_of(o.name) == "table"]
+        self._environment = _Fixed([o for o in objects if o.name in names or link_of(o.name) == "table"])
 
     # --- exact clearance ---------------------------------------------------------------------------------
     def clearance(self, q, stop_below: float = -np.inf) -> tuple[float, int]:
@@ -88,9 +95,9 @@ class World:
             M = self.data.oMi[j]
             world[sel] = self.centres[sel] @ M.rotation.T + M.translation
         bound = np.linalg.norm(world[self.first] - world[self.second], axis=1) - self.pair_radius
-        for obj, ks in self._boxes:
-            first = self.first[ks]
-            bound[ks] = _point_distance(obj, world[first]) - self.radii[first]
+        if len(self._box_pairs):
+            first = self.first[self._box_pairs]
+            bound[self._box_pairs] = self._box_set.paired(world[first]) - self.radii[first]
         if len(self._seg_pairs):
             first = self.first[self._seg_pairs]
             w = world[first] - self._seg_a
@@ -115,8 +122,8 @@ class World:
 
     # --- certain contacts, vectorised ---------------------------------------------------------------------
     def _inscribed_spheres(self, objects):
-        """(link, centre in the link frame (3,), radius) of a sphere inside each moving box, and the fixed
-        bodies (table top, obstacles) they are paired with."""
+        """Per moving box: (link, its centre in the link frame (3,), the spheres' radius, their centres' largest
+        distance from the box centre, their centres in the link frame (k, 3)) of spheres inside the box."""
         q0 = pin.neutral(self.model)
         data = self.model.createData()
         pin.framesForwardKinematics(self.model, data, q0)
@@ -128,9 +135,16 @@ class World:
             if type(o.geometry).__name__ != "Box":
                 continue
             link = link_of(o.name)
-            frame = data.oMf[self.model.getFrameId(link)]
-            centre = frame.actInv(self.scene.geometry_data.oMg[g].translation)
-            out.append((link, centre, float(np.min(o.geometry.halfSide))))
+            box = data.oMf[self.model.getFrameId(link)].actInv(self.scene.geometry_data.oMg[g])
+            half = np.asarray(o.geometry.halfSide, dtype=float)
+            radius = float(np.min(half))
+            # Spheres of the smallest half side, spread over the box (at most INSCRIBED_PER_AXIS a side, spaced
+            # by at most their radius): each is inside the box, so each one's distance is an upper bound.
+            axes = [np.linspace(-(h - radius), h - radius, min(INSCRIBED_PER_AXIS, int(np.ceil((h - radius)
+                    / radius)) + 1) if h - radius > 1e-12 else 1) for h in half]
+            offsets = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+            centres = offsets @ box.rotation.T + box.translation
+            out.append((link, box.translation, radius, float(np.max(np.linalg.norm(offsets, axis=1))), centres))
         return out
 
     def certainly_closer(self, Q: np.ndarray, margin: float) -> np.ndarray:
@@ -143,13 +157,23 @@ class World:
         poses["xray_source"] = source
         poses["detector"] = source @ system.detector_in_xray
         out = np.zeros(len(Q), dtype=bool)
-        for link, centre, radius in self._inscribed:
+        live = np.arange(len(Q))
+        for link, middle, radius, reach, centres in self._inscribed:
             T = poses.get(link)
-            if T is None:
+            if T is None or not len(live):
                 continue
-            points = T[:, :3, :3] @ centre + T[:, :3, 3]
-            for o in self._environment:
-                out |= _point_distance(o, points) - radius < margin
+            # A sphere ``reach`` from the box's centre can only be within the margin where the centre is
+            # within margin + radius + reach of the environment.
+            T = T[live]
+            near = self._environment.nearest(T[:, :3, :3] @ middle + T[:, :3, 3]) - radius - reach < margin
+            rows, T = live[near], T[near]
+            for centre in centres:
+                if not len(rows):
+                    break
+                hit = self._environment.nearest(T[:, :3, :3] @ centre + T[:, :3, 3]) - radius < margin
+                out[rows[hit]] = True
+                rows, T = rows[~hit], T[~hit]
+            live = live[~out[live]]
         return out
 
     # --- cheap bound for ranking ---------------------------------------------------------------------------
@@ -179,9 +203,7 @@ class World:
         obstacles, for sources (M, 3) and beam directions (M, 3) in the table frame."""
         out = np.full(len(sources), np.inf)
         for along, radius in self._beam_parts:
-            centres = sources + along * directions
-            for o in self._environment:
-                out = np.minimum(out, _point_distance(o, centres) - radius)
+            out = np.minimum(out, self._environment.nearest(sources + along * directions) - radius)
         return out
 
 
@@ -201,21 +223,62 @@ def _link_poses(system, Q):
     return E[:, None] @ kinematics.dh_frames(system.dh_table, q6), E @ system.closed_form.poses(q6)
 
 
-def _point_distance(obj, points: np.ndarray) -> np.ndarray:
-    """Distance (M,) from points (table frame) to a fixed geometry: exact for boxes, capsules and spheres
-    (negative inside), a lower bound (the bounding sphere) for anything else."""
-    M = obj.placement
-    local = (points - M.translation) @ M.rotation
-    g = obj.geometry
-    kind = type(g).__name__
-    if kind == "Box":
-        q = np.abs(local) - np.asarray(g.halfSide)
-        outside = np.sqrt(np.sum(np.maximum(q, 0.0) ** 2, axis=1))
-        return outside + np.minimum(np.max(q, axis=1), 0.0)
-    if kind == "Capsule":
-        local[:, 2] -= np.clip(local[:, 2], -g.halfLength, g.halfLength)
-        return np.sqrt(np.sum(local ** 2, axis=1)) - g.radius
-    if kind == "Sphere":
-        return np.linalg.norm(local, axis=1) - g.radius
-    g.computeLocalAABB()
-    return np.linalg.norm(local - np.asarray(g.aabb_center), axis=1) - g.aabb_radius
+class _Fixed:
+    """Geometries fixed to the table frame, stacked: distances (m) from points (table frame) to all of them at
+    once — exact for boxes, capsules and spheres (negative inside), a lower bound (the bounding sphere) for
+    anything else."""
+
+    def __init__(self, objects) -> None:
+        self.count = len(objects)
+        self.R = np.array([o.placement.rotation for o in objects]).reshape(-1, 3, 3)
+        self.t = np.array([o.placement.translation for o in objects]).reshape(-1, 3)
+        kinds = [type(o.geometry).__name__ for o in objects]
+        self.box = np.array([k == "Box" for k in kinds], dtype=bool)
+        self.half = np.array([o.geometry.halfSide if k == "Box" else np.zeros(3) for o, k in zip(objects, kinds)]
+                             ).reshape(-1, 3)
+        self.length = np.array([o.geometry.halfLength if k == "Capsule" else 0.0 for o, k in zip(objects, kinds)])
+        centre, radius = [], []
+        for o, k in zip(objects, kinds):
+            if k in ("Capsule", "Sphere"):
+                centre.append(np.zeros(3))
+                radius.append(o.geometry.radius)
+            elif k == "Box":
+                centre.append(np.zeros(3))
+                radius.append(0.0)
+            else:
+                o.geometry.computeLocalAABB()
+                centre.append(np.asarray(o.geometry.aabb_center, dtype=float))
+                radius.append(o.geometry.aabb_radius)
+        self.centre, self.radius = np.array(centre).reshape(-1, 3), np.array(radius)
+
+    def _distance(self, local, box, half, length, centre, radius):
+        q = np.abs(local) - half
+        to_box = np.sqrt(np.sum(np.maximum(q, 0.0) ** 2, axis=-1)) + np.minimum(np.max(q, axis=-1), 0.0)
+        rounded = local - centre
+        rounded[..., 2] -= np.clip(rounded[..., 2], -length, length)
+        return np.where(box, to_box, np.sqrt(np.sum(rounded ** 2, axis=-1)) - radius)
+
+    def nearest(self, points: np.ndarray) -> np.ndarray:
+        """(M,) distance from each point (M, 3) to the nearest of the objects (inf without objects); one object
+        at a time, by components (numpy's reductions over a last axis of 3 are slow on long arrays)."""
+        out = np.full(len(points), np.inf)
+        for k in range(self.count):
+            local = (points - self.t[k]) @ self.R[k]
+            x, y, z = local[:, 0], local[:, 1], local[:, 2]
+            if self.box[k]:
+                hx, hy, hz = self.half[k]
+                qx, qy, qz = np.abs(x) - hx, np.abs(y) - hy, np.abs(z) - hz
+                d = np.sqrt(np.maximum(qx, 0.0) ** 2 + np.maximum(qy, 0.0) ** 2 + np.maximum(qz, 0.0) ** 2)
+                d += np.minimum(np.maximum(np.maximum(qx, qy), qz), 0.0)
+            else:
+                cx, cy, cz = self.centre[k]
+                z = z - cz
+                z = z - np.clip(z, -self.length[k], self.length[k])
+                d = np.sqrt((x - cx) ** 2 + (y - cy) ** 2 + z ** 2) - self.radius[k]
+            np.minimum(out, d, out=out)
+        return out
+
+    def paired(self, points: np.ndarray) -> np.ndarray:
+        """(K,) distance from point k (K, 3) to object k (one object per point, K = the object count)."""
+        local = np.einsum("kd,kdj->kj", points - self.t, self.R)
+        return self._distance(local, self.box, self.half, self.length, self.centre, self.radius)

@@ -33,7 +33,7 @@ CLEARANCE_BIN = 0.01
 DISTANCE_CHOICES = (0.0, 1.0, 0.5, 0.25, 0.75, 0.125, 0.875)
 #: Cells searched together.
 CHUNK = 256
-#: Candidates per cell screened together (vectorised) before their exact checks.
+#: Candidates per cell screened together (vectorised) before their exact checks, at most.
 ROUND = 32
 #: Exact checks per cell before it is declared unreachable by contact.
 MAX_EXACT_CHECKS = 96
@@ -168,9 +168,12 @@ def _solve_chunk(ctx: Context, targets, directions, distance_range) -> Outcome:
         checks = np.zeros(N, dtype=int)
         limit = ctx.max_checks or MAX_EXACT_CHECKS
         closest = {}
-        for first in range(0, int(position.max()) + 1, ROUND):
-            rows = np.flatnonzero((position >= first) & (position < first + ROUND) & ~reachable[n]
+        first, size = 0, 1
+        while first <= int(position.max()):
+            # Rounds grow from one candidate per cell to ROUND: most cells are decided by their first ones.
+            rows = np.flatnonzero((position >= first) & (position < first + size) & ~reachable[n]
                                   & (checks[n] < limit))
+            first, size = first + size, min(2 * size, ROUND)
             if not len(rows):
                 break
             # Candidates that certainly touch (a sphere inside a moving part already within the margin of the
