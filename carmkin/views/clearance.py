@@ -122,8 +122,10 @@ class World:
 
     # --- certain contacts, vectorised ---------------------------------------------------------------------
     def _inscribed_spheres(self, objects):
-        """Per moving box: (link, its centre in the link frame (3,), the spheres' radius, their centres' largest
-        distance from the box centre, their centres in the link frame (k, 3)) of spheres inside the box."""
+        """Per moving box: (link, its centre in the link frame (3,), reach: the largest |c − centre| + r, the
+        centres c (k, 3, link frame) and radii r (k,) of balls inside the box — spheres of its smallest half
+        side and points of its surface (r = 0)). Each ball's distance to a body bounds the box's from above
+        (also when they overlap: separating the box needs at least the ball's depth)."""
         q0 = pin.neutral(self.model)
         data = self.model.createData()
         pin.framesForwardKinematics(self.model, data, q0)
@@ -143,12 +145,17 @@ class World:
             axes = [np.linspace(-(h - radius), h - radius, min(INSCRIBED_PER_AXIS, int(np.ceil((h - radius)
                     / radius)) + 1) if h - radius > 1e-12 else 1) for h in half]
             offsets = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-            centres = offsets @ box.rotation.T + box.translation
-            out.append((link, box.translation, radius, float(np.max(np.linalg.norm(offsets, axis=1))), centres))
+            # And the box's corners, edge middles and face centres (points of the box: radius 0).
+            surface = np.stack(np.meshgrid(*[(-h, 0.0, h) for h in half], indexing="ij"), axis=-1).reshape(-1, 3)
+            surface = surface[np.any(surface != 0, axis=1)]
+            offsets = np.vstack((offsets, surface))
+            radii = np.r_[np.full(len(offsets) - len(surface), radius), np.zeros(len(surface))]
+            reach = float(np.max(np.linalg.norm(offsets, axis=1) + radii))
+            out.append((link, box.translation, reach, offsets @ box.rotation.T + box.translation, radii))
         return out
 
     def certainly_closer(self, Q: np.ndarray, margin: float) -> np.ndarray:
-        """(M,) True where configuration Q[m] (M, nq) certainly has a pair closer than ``margin`` (m): a sphere
+        """(M,) True where configuration Q[m] (M, nq) certainly has a pair closer than ``margin`` (m): a ball
         inside a moving box is already that close to the table top or an obstacle (exact point distances).
         Link frames are the system's DH frames, source and detector frames (its closed-form FK)."""
         frames, source = _link_poses(self.system, Q)
@@ -158,21 +165,23 @@ class World:
         poses["detector"] = source @ system.detector_in_xray
         out = np.zeros(len(Q), dtype=bool)
         live = np.arange(len(Q))
-        for link, middle, radius, reach, centres in self._inscribed:
+        for link, middle, reach, centres, radii in self._inscribed:
             T = poses.get(link)
             if T is None or not len(live):
                 continue
-            # A sphere ``reach`` from the box's centre can only be within the margin where the centre is
-            # within margin + radius + reach of the environment.
+            # A sphere (centre c, radius r) can only be within the margin where the box's centre is within
+            # margin + |c − centre| + r ≤ margin + reach of the environment.
             T = T[live]
-            near = self._environment.nearest(T[:, :3, :3] @ middle + T[:, :3, 3]) - radius - reach < margin
-            rows, T = live[near], T[near]
-            for centre in centres:
-                if not len(rows):
-                    break
-                hit = self._environment.nearest(T[:, :3, :3] @ centre + T[:, :3, 3]) - radius < margin
-                out[rows[hit]] = True
-                rows, T = rows[~hit], T[~hit]
+            middles = T[:, :3, :3] @ middle + T[:, :3, 3]
+            environment = self._environment
+            for k in range(environment.count):
+                near = np.flatnonzero(environment.to(k, middles) - reach < margin)
+                near = near[~out[live[near]]]
+                if len(near):
+                    Tn = T[near]
+                    points = (Tn[:, None, :3, :3] @ centres[None, :, :, None])[..., 0] + Tn[:, None, :3, 3]
+                    d = environment.to(k, points.reshape(-1, 3)).reshape(len(near), len(radii))
+                    out[live[near[np.any(d - radii < margin, axis=1)]]] = True
             live = live[~out[live]]
         return out
 
@@ -258,24 +267,26 @@ class _Fixed:
         rounded[..., 2] -= np.clip(rounded[..., 2], -length, length)
         return np.where(box, to_box, np.sqrt(np.sum(rounded ** 2, axis=-1)) - radius)
 
+    def to(self, k: int, points: np.ndarray) -> np.ndarray:
+        """(M,) distance from points (M, 3) to object k, by components (numpy's reductions over a last axis
+        of 3 are slow on long arrays)."""
+        local = (points - self.t[k]) @ self.R[k]
+        x, y, z = local[:, 0], local[:, 1], local[:, 2]
+        if self.box[k]:
+            hx, hy, hz = self.half[k]
+            qx, qy, qz = np.abs(x) - hx, np.abs(y) - hy, np.abs(z) - hz
+            d = np.sqrt(np.maximum(qx, 0.0) ** 2 + np.maximum(qy, 0.0) ** 2 + np.maximum(qz, 0.0) ** 2)
+            return d + np.minimum(np.maximum(np.maximum(qx, qy), qz), 0.0)
+        cx, cy, cz = self.centre[k]
+        z = z - cz
+        z = z - np.clip(z, -self.length[k], self.length[k])
+        return np.sqrt((x - cx) ** 2 + (y - cy) ** 2 + z ** 2) - self.radius[k]
+
     def nearest(self, points: np.ndarray) -> np.ndarray:
-        """(M,) distance from each point (M, 3) to the nearest of the objects (inf without objects); one object
-        at a time, by components (numpy's reductions over a last axis of 3 are slow on long arrays)."""
+        """(M,) distance from each point (M, 3) to the nearest of the objects (inf without objects)."""
         out = np.full(len(points), np.inf)
         for k in range(self.count):
-            local = (points - self.t[k]) @ self.R[k]
-            x, y, z = local[:, 0], local[:, 1], local[:, 2]
-            if self.box[k]:
-                hx, hy, hz = self.half[k]
-                qx, qy, qz = np.abs(x) - hx, np.abs(y) - hy, np.abs(z) - hz
-                d = np.sqrt(np.maximum(qx, 0.0) ** 2 + np.maximum(qy, 0.0) ** 2 + np.maximum(qz, 0.0) ** 2)
-                d += np.minimum(np.maximum(np.maximum(qx, qy), qz), 0.0)
-            else:
-                cx, cy, cz = self.centre[k]
-                z = z - cz
-                z = z - np.clip(z, -self.length[k], self.length[k])
-                d = np.sqrt((x - cx) ** 2 + (y - cy) ** 2 + z ** 2) - self.radius[k]
-            np.minimum(out, d, out=out)
+            np.minimum(out, self.to(k, points), out=out)
         return out
 
     def paired(self, points: np.ndarray) -> np.ndarray:
