@@ -132,7 +132,8 @@ class World:
         pin.updateGeometryPlacements(self.model, data, self.scene.geometry_model, self.scene.geometry_data)
         moving = set(self.first.tolist())
         out = []
-        for g in sorted(moving):
+        # The source housing and the detector first: they touch most often, and the test stops at a contact.
+        for g in sorted(moving, key=lambda g: (link_of(objects[g].name) not in ("xray_source", "detector"), g)):
             o = objects[g]
             if type(o.geometry).__name__ != "Box":
                 continue
@@ -179,7 +180,7 @@ class World:
                 near = near[~out[live[near]]]
                 if len(near):
                     Tn = T[near]
-                    points = (Tn[:, None, :3, :3] @ centres[None, :, :, None])[..., 0] + Tn[:, None, :3, 3]
+                    points = np.swapaxes(Tn[:, :3, :3] @ centres.T, 1, 2) + Tn[:, None, :3, 3]
                     d = environment.to(k, points.reshape(-1, 3)).reshape(len(near), len(radii))
                     out[live[near[np.any(d - radii < margin, axis=1)]]] = True
             live = live[~out[live]]

@@ -96,8 +96,21 @@ def _world_cached(key):
     return world
 
 
+@functools.lru_cache(maxsize=8)
+def _model_key(system, patient):
+    return _key(system, patient_obstacles(patient))
+
+
 def world_for(system, patient):
-    """The collision world of ``system`` with ``patient`` (cached per system and obstacle list)."""
+    """The collision world of ``system`` with ``patient`` (cached per system and obstacle list; a frozen
+    dataclass patient model's obstacles are built once per model)."""
+    import dataclasses
+
+    if dataclasses.is_dataclass(patient) and patient.__dataclass_params__.frozen:
+        try:
+            return _world_cached(_model_key(system, patient))
+        except TypeError:  # unhashable fields (arrays): build its obstacles
+            pass
     return _world_cached(_key(system, patient_obstacles(patient)))
 
 

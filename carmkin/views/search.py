@@ -35,6 +35,8 @@ DISTANCE_CHOICES = (0.0, 1.0, 0.5, 0.25, 0.75, 0.125, 0.875)
 CHUNK = 256
 #: Candidates per cell screened together (vectorised) before their exact checks, at most.
 ROUND = 32
+#: Rows screened in a search's first round, at least (up to ROUND per cell).
+MIN_ROWS = 1024
 #: Exact checks per cell before it is declared unreachable by contact.
 MAX_EXACT_CHECKS = 96
 
@@ -168,9 +170,10 @@ def _solve_chunk(ctx: Context, targets, directions, distance_range) -> Outcome:
         checks = np.zeros(N, dtype=int)
         limit = ctx.max_checks or MAX_EXACT_CHECKS
         closest = {}
-        first, size = 0, 1
+        first, size = 0, int(np.clip(MIN_ROWS // N, 1, ROUND))
         while first <= int(position.max()):
-            # Rounds grow from one candidate per cell to ROUND: most cells are decided by their first ones.
+            # Rounds grow to ROUND candidates per cell from one (MIN_ROWS or more cells; most are decided by
+            # their first candidates) or more (few cells: a round's cost is then its fixed cost).
             rows = np.flatnonzero((position >= first) & (position < first + size) & ~reachable[n]
                                   & (checks[n] < limit))
             first, size = first + size, min(2 * size, ROUND)
@@ -187,10 +190,11 @@ def _solve_chunk(ctx: Context, targets, directions, distance_range) -> Outcome:
                 d, pair = world.clearance(q[k], stop_below=ctx.margin)
                 if d >= ctx.margin:
                     reachable[cell], q_out[cell], clearance[cell] = True, q[k], d
-                    T = system.fk(q[k])
-                    distance[cell] = float(np.dot(targets[cell] - T[:3, 3], T[:3, 2]))
                 elif d < closest.get(cell, (np.inf, -1))[0]:
                     closest[cell] = (d, pair)
+        if reachable.any():
+            T = system.fk(q_out[reachable])
+            distance[reachable] = np.einsum("ij,ij->i", targets[reachable] - T[:, :3, 3], T[:, :3, 2])
         for cell in np.unique(n).tolist():
             if not reachable[cell]:
                 contact[cell] = closest.get(cell, (-np.inf, -1))
