@@ -19,6 +19,7 @@ EXTRAS = {
     "dicom": "pydicom",
     "drr": "torch, nanodrr and nibabel",
     "cbct": "itk-rtk (itk with RTK's CPU filters)",
+    "ct": "nibabel and scikit-image (a patient body from a CT)",
 }
 
 

@@ -82,7 +82,9 @@ def real_array(
         raise error(f"{name} must be {expected}, got shape {array.shape}")
     if finite and not np.all(np.isfinite(array)):
         raise error(f"{name} must be finite (no NaN or Inf), got {_describe(value)}")
-    if limit is not None and array.size and np.max(np.abs(np.nan_to_num(array, posinf=0.0, neginf=0.0))) > limit:
+    # finite arrays need no nan_to_num (a third of this function's time on a 6-vector)
+    if limit is not None and array.size and (
+            np.abs(array) if finite else np.abs(np.nan_to_num(array, posinf=0.0, neginf=0.0))).max() > limit:
         raise error(f"{name} must be {expected} within ±{limit:g}{unit_text}, got {_describe(value)}")
     return array
 

