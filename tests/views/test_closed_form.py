@@ -67,7 +67,7 @@ def test_certain_contacts_are_contacts():
         world = World(system, patient.obstacles())
         scene = CollisionScene.from_system(system, patient.obstacles())
         rng = np.random.default_rng(0)
-        Q = system.lower + rng.random((300, system.nq)) * (system.upper - system.lower)
+        Q = system.lower + rng.random((1000, system.nq)) * (system.upper - system.lower)
         frames, source = _link_poses(system, Q)
         np.testing.assert_allclose(frames, system.dh_frames(Q), atol=1e-12)
         np.testing.assert_allclose(source, system.fk(Q), atol=1e-12)
