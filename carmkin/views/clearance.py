@@ -51,7 +51,8 @@ class World:
         self.first = np.array([p.first for p in pairs], dtype=int)
         self.second = np.array([p.second for p in pairs], dtype=int)
         self.pair_radius = self.radii[self.first] + self.radii[self.second]
-        self.joints_used = [(j, np.flatnonzero(self.parent == j)) for j in np.unique(self.parent).tolist()]
+        self._joints, self._joint_of = np.unique(self.parent, return_inverse=True)
+        self._joints = self._joints.tolist()
         # Pairs against a body fixed to the table frame get the exact distance from the moving sphere's centre
         # to that body as their bound (a 2 m table top's own sphere would bound nothing): boxes one by one,
         # capsules and spheres all at once as segments.
@@ -90,11 +91,11 @@ class World:
         smallest)."""
         pin.forwardKinematics(self.model, self.data, np.asarray(q, dtype=float))
         pin.updateGeometryPlacements(self.model, self.data, self.scene.geometry_model, self.scene.geometry_data)
-        world = np.empty_like(self.centres)
-        for j, sel in self.joints_used:
-            M = self.data.oMi[j]
-            world[sel] = self.centres[sel] @ M.rotation.T + M.translation
-        bound = np.linalg.norm(world[self.first] - world[self.second], axis=1) - self.pair_radius
+        oMi = self.data.oMi
+        H = np.array([oMi[j].homogeneous for j in self._joints])[self._joint_of]  # (G, 4, 4)
+        world = np.einsum("gij,gj->gi", H[:, :3, :3], self.centres) + H[:, :3, 3]
+        gap = world[self.first] - world[self.second]
+        bound = np.sqrt(np.einsum("ij,ij->i", gap, gap)) - self.pair_radius
         if len(self._box_pairs):
             first = self.first[self._box_pairs]
             bound[self._box_pairs] = self._box_set.paired(world[first]) - self.radii[first]
@@ -102,11 +103,12 @@ class World:
             first = self.first[self._seg_pairs]
             w = world[first] - self._seg_a
             t = np.clip(np.einsum("ij,ij->i", w, self._seg_v) / self._seg_vv, 0.0, 1.0)
-            bound[self._seg_pairs] = (np.linalg.norm(w - t[:, None] * self._seg_v, axis=1) - self._seg_r
-                                      - self.radii[first])
+            w -= t[:, None] * self._seg_v
+            bound[self._seg_pairs] = np.sqrt(np.einsum("ij,ij->i", w, w)) - self._seg_r - self.radii[first]
         order = np.argsort(bound)
         best, which = np.inf, -1
         gm, gd = self.scene.geometry_model, self.scene.geometry_data
+        bound = bound.tolist()
         for k in order.tolist():
             if bound[k] >= best:
                 break
@@ -261,13 +263,6 @@ class _Fixed:
                 radius.append(o.geometry.aabb_radius)
         self.centre, self.radius = np.array(centre).reshape(-1, 3), np.array(radius)
 
-    def _distance(self, local, box, half, length, centre, radius):
-        q = np.abs(local) - half
-        to_box = np.sqrt(np.sum(np.maximum(q, 0.0) ** 2, axis=-1)) + np.minimum(np.max(q, axis=-1), 0.0)
-        rounded = local - centre
-        rounded[..., 2] -= np.clip(rounded[..., 2], -length, length)
-        return np.where(box, to_box, np.sqrt(np.sum(rounded ** 2, axis=-1)) - radius)
-
     def to(self, k: int, points: np.ndarray) -> np.ndarray:
         """(M,) distance from points (M, 3) to object k, by components (numpy's reductions over a last axis
         of 3 are slow on long arrays)."""
@@ -291,6 +286,7 @@ class _Fixed:
         return out
 
     def paired(self, points: np.ndarray) -> np.ndarray:
-        """(K,) distance from point k (K, 3) to object k (one object per point, K = the object count)."""
-        local = np.einsum("kd,kdj->kj", points - self.t, self.R)
-        return self._distance(local, self.box, self.half, self.length, self.centre, self.radius)
+        """(K,) distance from point k (K, 3) to object k (one object per point, K = the object count; boxes
+        only)."""
+        q = np.abs(np.einsum("kd,kdj->kj", points - self.t, self.R)) - self.half
+        return np.sqrt(np.einsum("kj,kj->k", *(np.maximum(q, 0.0),) * 2)) + np.minimum(q.max(axis=1), 0.0)
