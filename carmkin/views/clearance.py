@@ -266,8 +266,7 @@ class _Fixed:
     def to(self, k: int, points: np.ndarray) -> np.ndarray:
         """(M,) distance from points (M, 3) to object k, by components (numpy's reductions over a last axis
         of 3 are slow on long arrays)."""
-        local = (points - self.t[k]) @ self.R[k]
-        x, y, z = local[:, 0], local[:, 1], local[:, 2]
+        x, y, z = self.R[k].T @ (points - self.t[k]).T  # rows: contiguous components
         if self.box[k]:
             hx, hy, hz = self.half[k]
             qx, qy, qz = np.abs(x) - hx, np.abs(y) - hy, np.abs(z) - hz
