@@ -72,8 +72,6 @@ def test_panorama_junk_is_typed(planner, junk, call):
     lambda j: transforms.segment_hits_box(j, (1, 1, 1), (0, 0, 0), (1, 1, 1)),
 ])
 def test_transforms_junk_is_typed(junk, call):
-    if call is transforms.wrap_angle and junk is True:
-        pytest.skip("covered below")
     with pytest.raises(CarmkinError):
         call(junk)
 
