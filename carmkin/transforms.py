@@ -94,10 +94,13 @@ def inverse(T: np.ndarray) -> np.ndarray:
     ``T`` is checked as :func:`check_rigid_transform` does (a non-rigid matrix has no such inverse):
     :class:`~carmkin.errors.InvalidPoseError` otherwise.
     """
-    T = real_array(T, "T", error=InvalidPoseError, unit="m")
-    if T.ndim < 2 or T.shape[-2:] != (4, 4):
-        raise InvalidPoseError(f"T must have shape (..., 4, 4), got {T.shape}")
-    check_rigid_transform(T.reshape(-1, 4, 4), "T", batch=True)
+    if type(T) is np.ndarray and T.shape == (4, 4):
+        T = rigid_transform(T, "T", error=InvalidPoseError)  # one pose: the plain-float fast path
+    else:
+        T = real_array(T, "T", error=InvalidPoseError, unit="m")
+        if T.ndim < 2 or T.shape[-2:] != (4, 4):
+            raise InvalidPoseError(f"T must have shape (..., 4, 4), got {T.shape}")
+        rigid_transform(T.reshape(-1, 4, 4), "T", error=InvalidPoseError, batch=True)
     out = np.zeros_like(T)
     Rt = np.swapaxes(T[..., :3, :3], -1, -2)
     out[..., :3, :3] = Rt

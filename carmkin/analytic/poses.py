@@ -18,15 +18,7 @@ import numpy as np
 
 from carmkin.errors import InvalidPoseError
 from carmkin.transforms import NEARLY_RIGID_TOLERANCE, check_rigid_transform, nearest_rigid
-from carmkin.validation import MAGNITUDE_LIMIT, RIGID_TOLERANCE, real_array
-
-
-def rigidity(a, b, c, d, e, f, g, h, i):
-    """``(||RᵀR − I||_F², det R)`` of R = [[a, b, c], [d, e, f], [g, h, i]] for floats or arrays."""
-    m00, m11, m22 = a * a + d * d + g * g - 1.0, b * b + e * e + h * h - 1.0, c * c + f * f + i * i - 1.0
-    m01, m02, m12 = a * b + d * e + g * h, a * c + d * f + g * i, b * c + e * f + h * i
-    ortho = m00 * m00 + m11 * m11 + m22 * m22 + 2.0 * (m01 * m01 + m02 * m02 + m12 * m12)
-    return ortho, a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
+from carmkin.validation import MAGNITUDE_LIMIT, RIGID_TOLERANCE, real_array, rigidity
 
 
 def project(T, name: str, batch: bool = False):
