@@ -6,14 +6,13 @@ from __future__ import annotations
 import numpy as np
 
 from carmkin.errors import CarmkinError
+from carmkin import validation
 from carmkin.validation import real_array
 
 
 def instance(value, cls, name: str, error: type[CarmkinError]):
-    """``value`` if it is a ``cls``, else ``error`` naming ``name``."""
-    if not isinstance(value, cls):
-        raise error(f"{name} must be a {cls.__name__}, got {type(value).__name__}")
-    return value
+    """``value`` if it is a ``cls``, else ``error`` naming ``name`` (:func:`carmkin.validation.instance`)."""
+    return validation.instance(value, cls, name, error=error)
 
 
 def system(value, name: str, error: type[CarmkinError]):
