@@ -28,6 +28,11 @@ def _sphere(obj) -> tuple[np.ndarray, float]:
     return centre, float(geometry.aabb_radius)
 
 
+#: Shapes whose point distance :class:`_Fixed` computes exactly.
+_EXACT_SHAPES = ("Box", "Capsule", "Sphere")
+#: Balls on the beam axis per box of the source housing and the detector in the certain-contact screen.
+AXIS_BALLS_PER_BOX = 5
+
 #: Inscribed spheres per box axis in the certain-contact test.
 INSCRIBED_PER_AXIS = 5
 
@@ -53,71 +58,132 @@ class World:
         self.pair_radius = self.radii[self.first] + self.radii[self.second]
         self._joints, self._joint_of = np.unique(self.parent, return_inverse=True)
         self._joints = self._joints.tolist()
-        # Pairs against a body fixed to the table frame get the exact distance from the moving sphere's centre
-        # to that body as their bound (a 2 m table top's own sphere would bound nothing): boxes one by one,
-        # capsules and spheres all at once as segments.
-        box_pairs, box_objects, seg_pairs, seg = [], [], [], []
+        # Each moving geometry's centre in the DH frame on its joint, so that the bounds of many configurations
+        # come from the vectorised closed form (no per-configuration Pinocchio call).
+        data0 = self.model.createData()
+        pin.framesForwardKinematics(self.model, data0, pin.neutral(self.model))
+        dh = {}
+        for k in range(6):
+            f = self.model.getFrameId(f"dh_frame_{k + 1}")
+            dh[self.model.frames[f].parentJoint] = (k, data0.oMf[f])
+        self._moving = np.flatnonzero(self.parent != 0)
+        self._frame_of_moving = np.array([dh[j][0] for j in self.parent[self._moving].tolist()], dtype=int)
+        self._moving_local = np.array([dh[j][1].actInv(data0.oMi[j].act(self.centres[g]))
+                                       for g, j in zip(self._moving.tolist(), self.parent[self._moving].tolist())]).reshape(-1, 3)
+        # Pairs against a box, capsule or sphere (the table top, the floor, the patient's parts) get the exact
+        # distance from the moving sphere's centre to that body as their bound (a 2 m table top's or an 8 m
+        # floor's own sphere would bound nothing); the pose of the body is fixed or follows its DH frame.
+        plain = np.ones(len(self.first), dtype=bool)
+        exact, body_pose, body_frame, shapes = [], [], [], []
         for g in np.unique(self.second).tolist():
-            o = objects[g]
-            if o.parentJoint != 0:
+            o, j = objects[g], int(self.parent[g])
+            kind = type(o.geometry).__name__
+            if kind not in _EXACT_SHAPES:
                 continue
             ks = np.flatnonzero(self.second == g)
-            kind = type(o.geometry).__name__
-            if kind == "Box":
-                box_pairs += ks.tolist()
-                box_objects += [o] * len(ks)
-            elif kind in ("Capsule", "Sphere"):
-                half = o.geometry.halfLength if kind == "Capsule" else 0.0
-                axis = o.placement.rotation[:, 2] * half
-                for k in ks.tolist():
-                    seg_pairs.append(k)
-                    seg.append((o.placement.translation - axis, 2 * axis, o.geometry.radius))
-        self._box_pairs = np.array(box_pairs, dtype=int)
-        self._box_set = _Fixed(box_objects)
-        self._seg_pairs = np.array(seg_pairs, dtype=int)
-        self._seg_a = np.array([a for a, _, _ in seg]).reshape(-1, 3)
-        self._seg_v = np.array([v for _, v, _ in seg]).reshape(-1, 3)
-        self._seg_vv = np.maximum(np.einsum("ij,ij->i", self._seg_v, self._seg_v), 1e-300)
-        self._seg_r = np.array([r for _, _, r in seg])
+            plain[ks] = False
+            pose = data0.oMi[j] * o.placement if j else o.placement
+            frame = -1
+            if j:
+                frame, dh_pose = dh[j]
+                pose = dh_pose.actInv(pose)
+            half = np.asarray(o.geometry.halfSide, dtype=float) if kind == "Box" else np.zeros(3)
+            segment = (o.geometry.halfLength if kind == "Capsule" else 0.0, 0.0 if kind == "Box" else o.geometry.radius)
+            exact += ks.tolist()
+            body_pose += [(pose.rotation.copy(), pose.translation.copy())] * len(ks)
+            body_frame += [frame] * len(ks)
+            shapes += [(kind == "Box", half, segment)] * len(ks)
+        self._exact = np.array(exact, dtype=int)
+        self._exact_R = np.array([R for R, _ in body_pose]).reshape(-1, 3, 3)
+        self._exact_t = np.array([t for _, t in body_pose]).reshape(-1, 3)
+        self._exact_frame = np.array(body_frame, dtype=int)
+        self._exact_box = np.array([box for box, _, _ in shapes], dtype=bool)
+        self._exact_half = np.array([h for _, h, _ in shapes]).reshape(-1, 3)
+        self._exact_segment = np.array([seg for _, _, seg in shapes]).reshape(-1, 2)
+        self._plain = np.flatnonzero(plain)
         self._beam_parts = self._beam_spheres(objects)
         self._inscribed = self._inscribed_spheres(objects)
         names = {o.name for o in self.obstacles}
-        self._environment = _Fixed([o for o in objects if o.name in names or link_of(o.name) == "table"])
+        environment = [o for o in objects if o.name in names or link_of(o.name) == "table"]
+        self._environment = _Fixed(environment)
+        # The certain-contact tests need distances that are exact (an upper bound would do; the bounding sphere
+        # of a mesh is a lower bound): boxes, capsules and spheres only.
+        self._environment_exact = _Fixed([o for o in environment if type(o.geometry).__name__ in _EXACT_SHAPES])
+        self._axis_balls = self._beam_axis_balls(objects)
+        self.roll_lever = self._roll_levers(objects)
 
     # --- exact clearance ---------------------------------------------------------------------------------
     def clearance(self, q, stop_below: float = -np.inf) -> tuple[float, int]:
         """``(distance, pair index)``: the exact smallest signed distance (m) over the scene's pairs at q; with
         ``stop_below``, the first pair found closer than it ends the search (a distance below it, not the
         smallest)."""
-        pin.forwardKinematics(self.model, self.data, np.asarray(q, dtype=float))
-        pin.updateGeometryPlacements(self.model, self.data, self.scene.geometry_model, self.scene.geometry_data)
-        oMi = self.data.oMi
-        H = np.array([oMi[j].homogeneous for j in self._joints])[self._joint_of]  # (G, 4, 4)
-        world = np.einsum("gij,gj->gi", H[:, :3, :3], self.centres) + H[:, :3, 3]
-        gap = world[self.first] - world[self.second]
-        bound = np.sqrt(np.einsum("ij,ij->i", gap, gap)) - self.pair_radius
-        if len(self._box_pairs):
-            first = self.first[self._box_pairs]
-            bound[self._box_pairs] = self._box_set.paired(world[first]) - self.radii[first]
-        if len(self._seg_pairs):
-            first = self.first[self._seg_pairs]
-            w = world[first] - self._seg_a
-            t = np.clip(np.einsum("ij,ij->i", w, self._seg_v) / self._seg_vv, 0.0, 1.0)
-            w -= t[:, None] * self._seg_v
-            bound[self._seg_pairs] = np.sqrt(np.einsum("ij,ij->i", w, w)) - self._seg_r - self.radii[first]
-        order = np.argsort(bound)
-        best, which = np.inf, -1
+        d, pair = self.clearances(np.asarray(q, dtype=float)[None], stop_below)
+        return float(d[0]), int(pair[0])
+
+    def clearances(self, Q, stop_below: float = -np.inf) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`clearance` of configurations Q (M, nq): distances (M,) (m) and pair indices (M,) (−1: no
+        pair). The bounds of every pair are computed for all M at once; coal then runs per configuration in
+        the order of its bounds."""
+        Q = np.asarray(Q, dtype=float)
+        model, data = self.model, self.data
         gm, gd = self.scene.geometry_model, self.scene.geometry_data
-        bound = bound.tolist()
-        for k in order.tolist():
-            if bound[k] >= best:
-                break
-            d = pin.computeDistance(gm, gd, k).min_distance
-            if d < best:
-                best, which = d, k
-                if best < stop_below:
+        bound = self._bounds(Q)
+        order = np.argsort(bound, axis=1)
+        bound = np.take_along_axis(bound, order, axis=1)
+        out, which = np.full(len(Q), np.inf), np.full(len(Q), -1)
+        for i, q in enumerate(Q):
+            pin.forwardKinematics(model, data, q)
+            pin.updateGeometryPlacements(model, data, gm, gd)
+            best, pair = np.inf, -1
+            for b, k in zip(bound[i].tolist(), order[i].tolist()):
+                if b >= best:
                     break
-        return float(best), which
+                d = pin.computeDistance(gm, gd, k).min_distance
+                if d < best:
+                    best, pair = d, k
+                    if best < stop_below:
+                        break
+            out[i], which[i] = best, pair
+        return out, which
+
+    def _bounds(self, Q) -> np.ndarray:
+        """(M, P) lower bounds of every pair's signed distance (m): bounding spheres, or the exact distance from
+        the moving sphere's centre to a body fixed to the table frame."""
+        frames, _ = _link_poses(self.system, Q)  # (M, 6, 4, 4): DH frames 1..6, the closed form
+        # Components as (M, G) arrays: numpy is slow on a last axis of length 3.
+        F = frames[:, self._frame_of_moving]
+        c = self._moving_local
+        world = np.empty((3, len(Q), len(self.centres)))
+        world[:] = self.centres.T[:, None, :]
+        for i in range(3):
+            world[i][:, self._moving] = F[..., i, 0] * c[:, 0] + F[..., i, 1] * c[:, 1] + F[..., i, 2] * c[:, 2] + F[..., i, 3]
+        bound = np.empty((len(Q), len(self.first)))
+        k = self._plain
+        gap = world[:, :, self.first[k]] - world[:, :, self.second[k]]
+        bound[:, k] = np.sqrt(gap[0] ** 2 + gap[1] ** 2 + gap[2] ** 2) - self.pair_radius[k]
+        if len(self._exact):
+            first = self.first[self._exact]
+            p = world[:, :, first]  # (3, M, E)
+            for f in np.unique(self._exact_frame[self._exact_frame >= 0]).tolist():  # bodies on a joint (the floor)
+                e = np.flatnonzero(self._exact_frame == f)
+                T = frames[:, f]
+                d = [p[j][:, e] - T[:, j, 3, None] for j in range(3)]
+                for i in range(3):  # into frame f: Rᵀ (p − t)
+                    p[i][:, e] = T[:, 0, i, None] * d[0] + T[:, 1, i, None] * d[1] + T[:, 2, i, None] * d[2]
+            # Into each body's frame, then the exact point distance.
+            R, t = self._exact_R, self._exact_t
+            d = [p[j] - t[:, j] for j in range(3)]
+            x, y, z = (R[:, 0, i] * d[0] + R[:, 1, i] * d[1] + R[:, 2, i] * d[2] for i in range(3))
+            box = self._exact_box
+            hx, hy, hz = self._exact_half.T
+            qx, qy, qz = np.abs(x) - hx, np.abs(y) - hy, np.abs(z) - hz
+            d_box = np.sqrt(np.maximum(qx, 0.0) ** 2 + np.maximum(qy, 0.0) ** 2 + np.maximum(qz, 0.0) ** 2) \
+                + np.minimum(np.maximum(np.maximum(qx, qy), qz), 0.0)
+            half, radius = self._exact_segment.T
+            z = z - np.clip(z, -half, half)
+            d_seg = np.sqrt(x * x + y * y + z * z) - radius
+            bound[:, self._exact] = np.where(box, d_box, d_seg) - self.radii[first]
+        return bound
 
     def pair_names(self, k: int) -> tuple[str, str]:
         return self.scene.pairs[k]
@@ -176,7 +242,7 @@ class World:
             # margin + |c − centre| + r ≤ margin + reach of the environment.
             T = T[live]
             middles = T[:, :3, :3] @ middle + T[:, :3, 3]
-            environment = self._environment
+            environment = self._environment_exact
             for k in range(environment.count):
                 near = np.flatnonzero(environment.to(k, middles) - reach < margin)
                 near = near[~out[live[near]]]
@@ -186,6 +252,68 @@ class World:
                     d = environment.to(k, points.reshape(-1, 3)).reshape(len(near), len(radii))
                     out[live[near[np.any(d - radii < margin, axis=1)]]] = True
             live = live[~out[live]]
+        return out
+
+    def _roll_levers(self, objects) -> np.ndarray:
+        """(P,) per pair: the largest distance (m) of its first geometry's points from the beam axis when that
+        geometry rides on the orbital joint (rigid with the source) and its second is a convex shape fixed to
+        the table frame; inf otherwise (the pair's motion is not set by distance and roll alone)."""
+        from carmkin.qp.options import SOURCE_FRAME
+        from carmkin.sweeps.clearance import bounding_radius
+
+        data = self.model.createData()
+        pin.framesForwardKinematics(self.model, data, pin.neutral(self.model))
+        pin.updateGeometryPlacements(self.model, data, self.scene.geometry_model, self.scene.geometry_data)
+        source = self.model.getFrameId(SOURCE_FRAME)
+        T_source = data.oMf[source]
+        last = self.model.frames[source].parentJoint
+        convex = [type(o.geometry).__name__ in _EXACT_SHAPES + ("Cylinder", "Cone", "Ellipsoid")
+                  or type(o.geometry).__name__.startswith("Convex") for o in objects]
+        lever = np.full(len(self.first), np.inf)
+        for k, (a, b) in enumerate(zip(self.first.tolist(), self.second.tolist())):
+            if objects[a].parentJoint != last or objects[b].parentJoint != 0 or not (convex[a] and convex[b]):
+                continue
+            centre = T_source.actInv(self.scene.geometry_data.oMg[a]).translation
+            lever[k] = float(np.hypot(centre[0], centre[1])) + bounding_radius(objects[a].geometry)
+        return lever
+
+    def _beam_axis_balls(self, objects):
+        """(offset along the beam from the source (m), radius (m)) of balls centred on the beam axis inside the
+        boxes of the source housing and the detector (source frame, zero configuration). A ball centred on
+        the axis is the same whatever the roll about the beam."""
+        from carmkin.qp.options import SOURCE_FRAME
+
+        data = self.model.createData()
+        pin.framesForwardKinematics(self.model, data, pin.neutral(self.model))
+        pin.updateGeometryPlacements(self.model, data, self.scene.geometry_model, self.scene.geometry_data)
+        T_source = data.oMf[self.model.getFrameId(SOURCE_FRAME)]
+        balls = []
+        for g, o in enumerate(objects):
+            if link_of(o.name) not in ("xray_source", "detector") or type(o.geometry).__name__ != "Box":
+                continue
+            box = T_source.actInv(self.scene.geometry_data.oMg[g])
+            half = np.asarray(o.geometry.halfSide, dtype=float)
+            # Axis point (0, 0, u) in the box's frame: R^T ((0, 0, u) - t); its ball reaches the nearest face.
+            u = box.translation[2] + np.linspace(-1.0, 1.0, 201) * float(np.linalg.norm(half))
+            local = (np.outer(u, [0.0, 0.0, 1.0]) - box.translation) @ box.rotation
+            radius = np.min(half - np.abs(local), axis=1)
+            inside = np.flatnonzero(radius > 0.5 * radius.max()) if radius.max() > 0 else []
+            for k in np.unique(np.linspace(0, len(inside) - 1, min(AXIS_BALLS_PER_BOX, len(inside))).round()
+                               .astype(int)).tolist() if len(inside) else []:
+                balls.append((float(u[inside[k]]), float(radius[inside[k]])))
+        return balls
+
+    def beam_certainly_closer(self, sources: np.ndarray, directions: np.ndarray, margin: float) -> np.ndarray:
+        """(M,) True where, for sources (M, 3) and beam directions (M, 3) (table frame), a ball on the beam axis
+        inside the source housing or the detector is closer than ``margin`` (m) to the table top or an
+        obstacle — whatever the roll about the beam, the configuration touches."""
+        out = np.zeros(len(sources), dtype=bool)
+        for along, radius in self._axis_balls:
+            live = np.flatnonzero(~out)
+            if not len(live):
+                break
+            d = self._environment_exact.nearest(sources[live] + along * directions[live])
+            out[live[d - radius < margin]] = True
         return out
 
     # --- cheap bound for ranking ---------------------------------------------------------------------------
@@ -283,9 +411,3 @@ class _Fixed:
         for k in range(self.count):
             np.minimum(out, self.to(k, points), out=out)
         return out
-
-    def paired(self, points: np.ndarray) -> np.ndarray:
-        """(K,) distance from point k (K, 3) to object k (one object per point, K = the object count; boxes
-        only)."""
-        q = np.abs(np.einsum("kd,kdj->kj", points - self.t, self.R)) - self.half
-        return np.sqrt(np.einsum("kj,kj->k", *(np.maximum(q, 0.0),) * 2)) + np.minimum(q.max(axis=1), 0.0)
