@@ -2,7 +2,8 @@
 per-view QP loop they replace.
 
 1. ``carmkin.views.reach_map`` of the table origin over primary −90…90° × secondary −45…45° (181 × 91 at 1°;
-   --quick: 37 × 19 at 5°) on ``siremobile-iso-c3d`` with ``ParametricPatient.on_table`` (1.75 m, 75 kg).
+   --quick: 37 × 19 at 5°) on ``siremobile-iso-c3d`` with ``ParametricPatient.on_table`` (1.75 m, 75 kg), in
+   one process and in the default worker processes (one per usable core; the answers must be identical).
    Baseline in the same run: a per-view ``carmkin.qp_ik.solve`` loop on the same cells (an ``AxisTarget`` at
    the source position the C-arm's geometry gives, the orbital offset from the target, the patient as
    obstacles), timed on a random sample of the cells and scaled to the map's cell count.
@@ -15,6 +16,7 @@ per-view QP loop they replace.
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import time
 
@@ -23,7 +25,7 @@ import numpy as np
 import carmkin
 from carmkin import qp_ik
 from carmkin.patient import ParametricPatient
-from carmkin.views import View, plan_view, reach_map
+from carmkin.views import View, plan_view, reach_map, search
 
 from _timing import row
 
@@ -39,11 +41,19 @@ def main() -> None:
     primary, secondary = np.arange(-90, 91, step), np.arange(-45, 46, step)
     reach_map(system, target, [0], [0], patient)  # builds the collision world once (cached), as a session would
     start = time.perf_counter()
+    one = reach_map(system, target, primary, secondary, patient, workers=1)
+    t_one = time.perf_counter() - start
+    start = time.perf_counter()
     m = reach_map(system, target, primary, secondary, patient)
     t_map = time.perf_counter() - start
+    assert all(np.array_equal(getattr(one, f), getattr(m, f), equal_nan=True) for f in ("q", "clearance"))
+    assert all(np.array_equal(getattr(one, f), getattr(m, f)) for f in ("reachable", "reason"))
     cells = m.reachable.size
+    workers = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    parallel = workers > 1 and cells >= search.PARALLEL_MIN_CELLS
     print(f"map {len(primary)} x {len(secondary)} = {cells} cells: {m.reachable.sum()} reachable "
-          f"({100 * m.fraction:.1f} %)")
+          f"({100 * m.fraction:.1f} %); the default ran {workers if parallel else 1} process(es) and gave the "
+          "answers of one")
     rng = np.random.default_rng(0)
     sample = [(rng.integers(len(primary)), rng.integers(len(secondary))) for _ in range(20 if args.quick else 60)]
     obstacles = patient.obstacles()
@@ -58,7 +68,8 @@ def main() -> None:
     print(f"per-view qp_ik.solve loop: {solved} of {len(sample)} sampled cells solved (one descent per view, "
           "distance fixed at the orbital offset)")
     print(row("per-view qp_ik.solve loop (scaled to the map)", t_qp, unit="s"))
-    print(row("reach_map (free roll and distance, patient)", t_map, t_qp, unit="s"))
+    print(row("reach_map, 1 process", t_one, t_qp, unit="s"))
+    print(row(f"reach_map, the default ({workers if parallel else 1} process(es))", t_map, t_qp, unit="s"))
     times = []
     for i, j in sample:
         view = View.from_angles(primary[i], secondary[j], target, patient)

@@ -1,16 +1,21 @@
-"""Clearance of a configuration, exact where it decides: bounding spheres first, coal only for near pairs.
+"""Clearance of configurations, exact where it decides: bounds for every pair at once, coal for the near ones.
 
 :class:`World` holds one :class:`carmkin.robot.collision.CollisionScene` of a system with the patient (and
-any other obstacles), built once. Its :meth:`World.clearance` is the exact minimum signed distance (m) over
-the scene's pairs, found by branch and bound: every geometry's local AABB sphere gives a lower bound
-``|c1 − c2| − r1 − r2`` for each pair; coal computes pairs in increasing order of that bound and stops when
-the smallest exact distance so far is below the next bound — the result equals the minimum over all pairs
-(the tests compare it with a fresh scene's full computation). Written here because coal's broad phase
-answers "which pairs collide", not "the smallest distance of a fixed pair list" at this cost.
+any other obstacles), built once. :meth:`World.clearances` is the exact minimum signed distance (m) over
+the scene's pairs for many configurations, found by branch and bound. For all configurations at once
+(vectorised, the link poses from the closed form) every pair gets a lower bound: the distance from the
+moving shape's bounding-sphere centre to the other shape less the radius — exact point distances to boxes,
+capsules and spheres (table top, floor, patient; a 2 m table top's or an 8 m floor's own sphere would bound
+nothing), sphere to sphere otherwise. Then per configuration coal computes pairs in increasing order of
+their bound and stops when the smallest exact distance so far is below the next bound: the result is the
+minimum over all pairs (the tests compare it with a fresh scene's full computation). Written here because
+coal's broad phase answers "which pairs collide", not "the smallest distance of a fixed pair list" for many
+configurations at this cost.
 
 :meth:`World.beam_bound` is the cheap ranking score of the view search: a lower bound on the distance of
 the source housing and of the detector (spheres about the beam axis) to the fixed environment (table top and
-obstacles), vectorised over source positions. Lengths in m.
+obstacles), vectorised over source positions. :attr:`World.roll_lever` serves the contact regions of
+:mod:`carmkin.views.regions`. Lengths in m.
 """
 
 from __future__ import annotations
@@ -30,11 +35,6 @@ def _sphere(obj) -> tuple[np.ndarray, float]:
 
 #: Shapes whose point distance :class:`_Fixed` computes exactly.
 _EXACT_SHAPES = ("Box", "Capsule", "Sphere")
-#: Balls on the beam axis per box of the source housing and the detector in the certain-contact screen.
-AXIS_BALLS_PER_BOX = 5
-
-#: Inscribed spheres per box axis in the certain-contact test.
-INSCRIBED_PER_AXIS = 5
 
 
 class World:
@@ -102,14 +102,9 @@ class World:
         self._exact_segment = np.array([seg for _, _, seg in shapes]).reshape(-1, 2)
         self._plain = np.flatnonzero(plain)
         self._beam_parts = self._beam_spheres(objects)
-        self._inscribed = self._inscribed_spheres(objects)
         names = {o.name for o in self.obstacles}
         environment = [o for o in objects if o.name in names or link_of(o.name) == "table"]
         self._environment = _Fixed(environment)
-        # The certain-contact tests need distances that are exact (an upper bound would do; the bounding sphere
-        # of a mesh is a lower bound): boxes, capsules and spheres only.
-        self._environment_exact = _Fixed([o for o in environment if type(o.geometry).__name__ in _EXACT_SHAPES])
-        self._axis_balls = self._beam_axis_balls(objects)
         self.roll_lever = self._roll_levers(objects)
 
     # --- exact clearance ---------------------------------------------------------------------------------
@@ -124,7 +119,9 @@ class World:
         """:meth:`clearance` of configurations Q (M, nq): distances (M,) (m) and pair indices (M,) (−1: no
         pair). The bounds of every pair are computed for all M at once; coal then runs per configuration in
         the order of its bounds."""
-        Q = np.asarray(Q, dtype=float)
+        Q = np.asarray(Q, dtype=float).reshape(-1, self.model.nq)
+        if not len(Q):
+            return np.zeros(0), np.zeros(0, dtype=int)
         model, data = self.model, self.data
         gm, gd = self.scene.geometry_model, self.scene.geometry_data
         bound = self._bounds(Q)
@@ -188,72 +185,6 @@ class World:
     def pair_names(self, k: int) -> tuple[str, str]:
         return self.scene.pairs[k]
 
-    # --- certain contacts, vectorised ---------------------------------------------------------------------
-    def _inscribed_spheres(self, objects):
-        """Per moving box: (link, its centre in the link frame (3,), reach: the largest |c − centre| + r, the
-        centres c (k, 3, link frame) and radii r (k,) of balls inside the box — spheres of its smallest half
-        side and points of its surface (r = 0)). Each ball's distance to a body bounds the box's from above
-        (also when they overlap: separating the box needs at least the ball's depth)."""
-        q0 = pin.neutral(self.model)
-        data = self.model.createData()
-        pin.framesForwardKinematics(self.model, data, q0)
-        pin.updateGeometryPlacements(self.model, data, self.scene.geometry_model, self.scene.geometry_data)
-        moving = set(self.first.tolist())
-        out = []
-        # The source housing and the detector first: they touch most often, and the test stops at a contact.
-        for g in sorted(moving, key=lambda g: (link_of(objects[g].name) not in ("xray_source", "detector"), g)):
-            o = objects[g]
-            if type(o.geometry).__name__ != "Box":
-                continue
-            link = link_of(o.name)
-            box = data.oMf[self.model.getFrameId(link)].actInv(self.scene.geometry_data.oMg[g])
-            half = np.asarray(o.geometry.halfSide, dtype=float)
-            radius = float(np.min(half))
-            # Spheres of the smallest half side, spread over the box (at most INSCRIBED_PER_AXIS a side, spaced
-            # by at most their radius): each is inside the box, so each one's distance is an upper bound.
-            axes = [np.linspace(-(h - radius), h - radius, min(INSCRIBED_PER_AXIS, int(np.ceil((h - radius)
-                    / radius)) + 1) if h - radius > 1e-12 else 1) for h in half]
-            offsets = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-            # And the box's corners, edge middles and face centres (points of the box: radius 0).
-            surface = np.stack(np.meshgrid(*[(-h, 0.0, h) for h in half], indexing="ij"), axis=-1).reshape(-1, 3)
-            surface = surface[np.any(surface != 0, axis=1)]
-            offsets = np.vstack((offsets, surface))
-            radii = np.r_[np.full(len(offsets) - len(surface), radius), np.zeros(len(surface))]
-            reach = float(np.max(np.linalg.norm(offsets, axis=1) + radii))
-            out.append((link, box.translation, reach, offsets @ box.rotation.T + box.translation, radii))
-        return out
-
-    def certainly_closer(self, Q: np.ndarray, margin: float) -> np.ndarray:
-        """(M,) True where configuration Q[m] (M, nq) certainly has a pair closer than ``margin`` (m): a ball
-        inside a moving box is already that close to the table top or an obstacle (exact point distances).
-        Link frames are the system's DH frames, source and detector frames (its closed-form FK)."""
-        frames, source = _link_poses(self.system, Q)
-        system = self.system
-        poses = {f"dh_frame_{k + 1}": frames[:, k] for k in range(6)}
-        poses["xray_source"] = source
-        poses["detector"] = source @ system.detector_in_xray
-        out = np.zeros(len(Q), dtype=bool)
-        live = np.arange(len(Q))
-        for link, middle, reach, centres, radii in self._inscribed:
-            T = poses.get(link)
-            if T is None or not len(live):
-                continue
-            # A sphere (centre c, radius r) can only be within the margin where the box's centre is within
-            # margin + |c − centre| + r ≤ margin + reach of the environment.
-            T = T[live]
-            middles = T[:, :3, :3] @ middle + T[:, :3, 3]
-            environment = self._environment_exact
-            for k in range(environment.count):
-                near = np.flatnonzero(environment.to(k, middles) - reach < margin)
-                near = near[~out[live[near]]]
-                if len(near):
-                    Tn = T[near]
-                    points = np.swapaxes(Tn[:, :3, :3] @ centres.T, 1, 2) + Tn[:, None, :3, 3]
-                    d = environment.to(k, points.reshape(-1, 3)).reshape(len(near), len(radii))
-                    out[live[near[np.any(d - radii < margin, axis=1)]]] = True
-            live = live[~out[live]]
-        return out
-
     def _roll_levers(self, objects) -> np.ndarray:
         """(P,) per pair: the largest distance (m) of its first geometry's points from the beam axis when that
         geometry rides on the orbital joint (rigid with the source) and its second is a convex shape fixed to
@@ -276,45 +207,6 @@ class World:
             centre = T_source.actInv(self.scene.geometry_data.oMg[a]).translation
             lever[k] = float(np.hypot(centre[0], centre[1])) + bounding_radius(objects[a].geometry)
         return lever
-
-    def _beam_axis_balls(self, objects):
-        """(offset along the beam from the source (m), radius (m)) of balls centred on the beam axis inside the
-        boxes of the source housing and the detector (source frame, zero configuration). A ball centred on
-        the axis is the same whatever the roll about the beam."""
-        from carmkin.qp.options import SOURCE_FRAME
-
-        data = self.model.createData()
-        pin.framesForwardKinematics(self.model, data, pin.neutral(self.model))
-        pin.updateGeometryPlacements(self.model, data, self.scene.geometry_model, self.scene.geometry_data)
-        T_source = data.oMf[self.model.getFrameId(SOURCE_FRAME)]
-        balls = []
-        for g, o in enumerate(objects):
-            if link_of(o.name) not in ("xray_source", "detector") or type(o.geometry).__name__ != "Box":
-                continue
-            box = T_source.actInv(self.scene.geometry_data.oMg[g])
-            half = np.asarray(o.geometry.halfSide, dtype=float)
-            # Axis point (0, 0, u) in the box's frame: R^T ((0, 0, u) - t); its ball reaches the nearest face.
-            u = box.translation[2] + np.linspace(-1.0, 1.0, 201) * float(np.linalg.norm(half))
-            local = (np.outer(u, [0.0, 0.0, 1.0]) - box.translation) @ box.rotation
-            radius = np.min(half - np.abs(local), axis=1)
-            inside = np.flatnonzero(radius > 0.5 * radius.max()) if radius.max() > 0 else []
-            for k in np.unique(np.linspace(0, len(inside) - 1, min(AXIS_BALLS_PER_BOX, len(inside))).round()
-                               .astype(int)).tolist() if len(inside) else []:
-                balls.append((float(u[inside[k]]), float(radius[inside[k]])))
-        return balls
-
-    def beam_certainly_closer(self, sources: np.ndarray, directions: np.ndarray, margin: float) -> np.ndarray:
-        """(M,) True where, for sources (M, 3) and beam directions (M, 3) (table frame), a ball on the beam axis
-        inside the source housing or the detector is closer than ``margin`` (m) to the table top or an
-        obstacle — whatever the roll about the beam, the configuration touches."""
-        out = np.zeros(len(sources), dtype=bool)
-        for along, radius in self._axis_balls:
-            live = np.flatnonzero(~out)
-            if not len(live):
-                break
-            d = self._environment_exact.nearest(sources[live] + along * directions[live])
-            out[live[d - radius < margin]] = True
-        return out
 
     # --- cheap bound for ranking ---------------------------------------------------------------------------
     def _beam_spheres(self, objects):

@@ -9,12 +9,13 @@ boundary, lengths in m.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 
 import numpy as np
 
 from carmkin.errors import ViewError
-from carmkin.validation import real_array, real_scalar
+from carmkin.validation import integer, real_array, real_scalar
 
 from . import search
 from .plan import DEFAULT_MARGIN, beam_directions, reference, world_for
@@ -56,10 +57,11 @@ def _angles(value, name, low, high) -> np.ndarray:
 
 
 def reach_map(system, target, primary_deg=np.arange(-90, 91), secondary_deg=np.arange(-45, 46), patient=None, *,
-              position=None, margin: float = DEFAULT_MARGIN, table_samples=None) -> ReachMap:
+              position=None, margin: float = DEFAULT_MARGIN, table_samples=None, workers: int | None = None) -> ReachMap:
     """The map of ``target`` (3,) m (table frame) over ``primary_deg`` × ``secondary_deg`` (XA angles, deg,
     LAO +, CRA +) for a patient (model or list of Obstacle) in ``position`` (a Patient Position code or
-    pose; default the patient model's, else HFS)."""
+    pose; default the patient model's, else HFS). ``workers``: processes for a large map (default: the
+    cores this process may use); every cell's answer is the same for any number."""
     target = _point(target, "target")
     p = _angles(primary_deg, "primary_deg", -180.0, 180.0)
     s = _angles(secondary_deg, "secondary_deg", -90.0, 90.0)
@@ -73,11 +75,17 @@ def reach_map(system, target, primary_deg=np.arange(-90, 91), secondary_deg=np.a
     ctx = search.make_context(system, world, margin, reference(system, None), table_samples)
     n = len(directions)
     ranges = np.tile([0.0, system.carm.source_to_detector], (n, 1))
-    out = search.solve_cells(ctx, np.tile(target, (n, 1)), directions, ranges)
+    out = search.solve_cells(ctx, np.tile(target, (n, 1)), directions, ranges, _workers(workers))
     shape = (len(p), len(s))
     return ReachMap(p, s, target, directions.reshape(shape + (3,)), out.reachable.reshape(shape),
                     out.q.reshape(shape + (system.nq,)), out.clearance.reshape(shape), out.distance.reshape(shape),
                     out.binding.reshape(shape), out.reason.reshape(shape))
+
+
+def _workers(value) -> int:
+    if value is None:
+        return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    return integer(value, "workers", low=1, error=ViewError)
 
 
 def carm_alone(system):

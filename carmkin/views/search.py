@@ -4,11 +4,18 @@ For N cells (target, beam direction, distance range) at once:
 
 1. every (held table sample, wigwag sample θ2, sign σ) family in closed form with its exact interval of
    distances (:mod:`carmkin.views.closed_form`);
-2. each feasible family scored by the cheap bound of :meth:`World.beam_bound` at its best distance (the free
-   roll and distance are used for clearance first), ties (within :data:`CLEARANCE_BIN`) broken by the least
-   normalised motion from the reference configuration;
-3. per cell, the candidates in that order checked exactly (:meth:`World.clearance`) until one keeps the
-   margin; the first that does is the answer, with its exact clearance.
+2. per family, candidates at :data:`DISTANCE_CHOICES` of its interval and at its best-scored distance, each
+   scored by the cheap bound of :meth:`World.beam_bound` (the free roll and distance are used for clearance
+   first), ties (within :data:`CLEARANCE_BIN`) broken by the least normalised motion from the reference
+   configuration, tried round-robin over the distance choices;
+3. per cell, the candidates in that order checked exactly (:meth:`World.clearances`) until one keeps the
+   margin; the first that does is the answer, with its exact clearance. A candidate inside a certified
+   contact region of an earlier one (:mod:`carmkin.views.regions`) touches and is not checked.
+
+Most cells are answered by their first candidate, so it is found and checked for every cell first (the
+best-scored distances alone), and only the cells it leaves open get the rest of their candidates. The
+answer of a cell does not depend on the other cells searched with it (:func:`plan_view` and
+:func:`reach_map` agree cell by cell).
 
 A cell with no feasible family is unreachable by the joint ranges; one whose candidates all touch is
 unreachable by contact (the nearest pair is named). Lengths in m, angles in rad.
@@ -16,20 +23,19 @@ unreachable by contact (the nearest pair is named). Lengths in m, angles in rad.
 
 from __future__ import annotations
 
+import dataclasses
 import math
-from dataclasses import dataclass
+import multiprocessing
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from carmkin.sweeps.clearance import accuracy
-
 from . import closed_form
-
-SCREEN = False
+from .regions import Regions
 
 #: Wigwag samples are at most this far apart (rad) — finer than the 1° roll steps of the acceptance check.
 THETA2_STEP = math.radians(0.5)
-#: Distances scored per cell for the clearance ranking.
+#: Distances scored per cell to pick each family's best-scored distance.
 DISTANCE_SAMPLES = 9
 #: Distances sampled per cell for the scores of the other distance choices (a 1-Lipschitz lower envelope).
 FINE_DISTANCE_SAMPLES = 49
@@ -39,12 +45,12 @@ CLEARANCE_BIN = 0.01
 DISTANCE_CHOICES = (0.0, 1.0, 0.5, 0.25, 0.75, 0.125, 0.875)
 #: Cells searched together.
 CHUNK = 256
-#: Candidates per cell screened together (vectorised) before their exact checks, at most.
+#: Candidates per cell checked together (vectorised), at most; rounds grow 1, 2, 4, … to it.
 ROUND = 32
-#: Rows screened in a search's first round, at least (up to ROUND per cell).
-MIN_ROWS = 1024
 #: Exact checks per cell before it is declared unreachable by contact.
 MAX_EXACT_CHECKS = 96
+#: Cells a search splits over worker processes, at least (below, starting the workers costs more than it saves).
+PARALLEL_MIN_CELLS = 2048
 
 
 @dataclass
@@ -82,6 +88,7 @@ class Outcome:
     distance: np.ndarray
     reason: np.ndarray
     binding: np.ndarray
+    rank: np.ndarray  # (N,) position of the answer in its cell's search order (-1: unreachable)
 
 
 def _frame(system, q_hold) -> np.ndarray:
@@ -99,31 +106,15 @@ def _lambda_at(fam, idx, s):
     return np.clip(lam, fam.lo[idx], fam.hi[idx])
 
 
-def solve_cells(ctx: Context, targets, directions, distance_range) -> Outcome:
-    """Search N cells: targets/directions (N, 3) in the table frame, distance_range (N, 2) (m), in chunks of
-    :data:`CHUNK` cells (the candidate arrays of a chunk stay in cache)."""
-    if len(targets) <= CHUNK:
-        return _solve_chunk(ctx, targets, directions, distance_range)
-    parts = [_solve_chunk(ctx, targets[a:a + CHUNK], directions[a:a + CHUNK], distance_range[a:a + CHUNK])
-             for a in range(0, len(targets), CHUNK)]
-    return Outcome(*(np.concatenate([getattr(p, f) for p in parts]) for f in
-                     ("reachable", "q", "clearance", "distance", "reason", "binding")))
-
-
-def _candidates(ctx: Context, chunk, kinds, cells=None):
-    """Candidates of the families of ``chunk`` (only of ``cells`` (N,) bool, when given), one per family and
-    distance choice ``kind`` in ``kinds``: arrays (cell, score, motion, q, kind, distance)."""
+def _candidates(ctx: Context, chunk, kinds):
+    """Candidates of the families of ``chunk``, one per family and distance choice ``kind`` in ``kinds``:
+    arrays (chunk cell, score, motion, q, kind, (distance, roll)); None without any."""
     system, world = ctx.system, ctx.world
     targets, directions, s_grid, grid_score, fams = chunk.targets, chunk.directions, chunk.s_grid, chunk.grid_score, chunk.families
     span = np.maximum(system.upper - system.lower, 1e-9)
     out = []
     e1, e2 = _roll_basis(directions)
     for hold, fam, idx in fams:
-        if cells is not None:
-            keep = cells[idx[0]]
-            idx = tuple(i[keep] for i in idx)
-        if not len(idx[0]):
-            continue
         n = idx[0]
         base, slope = fam.base[idx][:, 0], fam.slope[idx][:, 0]
         s0, s1 = base + slope * fam.lo[idx], base + slope * fam.hi[idx]
@@ -151,7 +142,7 @@ def _candidates(ctx: Context, chunk, kinds, cells=None):
                                                    directions[n[miss]])
             else:
                 s_try = s_lo + DISTANCE_CHOICES[kind - 1] * (s_hi - s_lo)
-                score = chunk.fine_bound(world, n, s_try, cells)
+                score = chunk.fine_bound(world, n, s_try)
             q = closed_form.joints(system, fam, idx, _lambda_at(fam, idx, s_try), hold)
             motion = np.sum(np.abs(q - ctx.q_ref) / span, axis=1)
             out.append((n, score, motion, q, np.full(len(n), kind), np.stack((s_try, roll), axis=1)))
@@ -171,7 +162,7 @@ def _roll_basis(directions):
 def _ordered(cand):
     """The candidates in search order: per cell, by clearance bin (best first) then least motion within each
     distance choice, and round-robin over the choices (the k-th of each before the (k+1)-th of any). Returns
-    (cell, q, distance, position in its cell)."""
+    (cell, q, (distance, roll), position in its cell)."""
     n, score, motion, q, kind, s = cand
     order = np.lexsort((motion, -np.floor(score / CLEARANCE_BIN), kind, n))
     n, q, kind, s = n[order], q[order], kind[order], s[order]
@@ -192,16 +183,17 @@ class _Chunk:
     grid_score: np.ndarray
     families: list  # (hold, Families, feasible index)
     distance_range: np.ndarray
+    index: np.ndarray  # the chunk's cells in the whole search
     fine: np.ndarray | None = None
 
-    def fine_bound(self, world, n, s, cells=None) -> np.ndarray:
+    def fine_bound(self, world, n, s) -> np.ndarray:
         """The beam bound (:meth:`World.beam_bound`) at distances s (M,) of cells n (M,), from below: it moves by
         at most |Δs| when the source does, so ``g(s_j) − |s − s_j|`` at the two samples about s bounds it.
-        Samples :data:`FINE_DISTANCE_SAMPLES` per cell (of ``cells``, when given) on first use."""
+        Samples :data:`FINE_DISTANCE_SAMPLES` per cell on first use."""
         lo, hi = self.distance_range[:, 0], self.distance_range[:, 1]
         if self.fine is None:
             self.fine = np.full((len(lo), FINE_DISTANCE_SAMPLES), np.nan)
-            rows = np.arange(len(lo)) if cells is None else np.flatnonzero(cells)
+            rows = np.arange(len(lo))
             grid = lo[rows, None] + (hi - lo)[rows, None] * np.linspace(0, 1, FINE_DISTANCE_SAMPLES)
             d = np.repeat(self.directions[rows], FINE_DISTANCE_SAMPLES, axis=0)
             self.fine[rows] = world.beam_bound((self.targets[rows, None, :] - grid[..., None] * self.directions[rows, None, :])
@@ -216,163 +208,160 @@ class _Chunk:
 
 @dataclass
 class _State:
+    """Per cell of the whole search (global indices)."""
+
     reachable: np.ndarray
     q: np.ndarray
     clearance: np.ndarray
     checks: np.ndarray
-    closest: dict
-    found_at: np.ndarray  # position of the answer in its cell's search order (-1: none)
-    regions: "_Regions"
+    rank: np.ndarray
+    searched: np.ndarray  # some family is feasible
+    angle_excess: np.ndarray
+    line_empty: np.ndarray
+    regions: Regions
+    closest: dict = field(default_factory=dict)  # cell -> (distance, pair) of its closest exact check
 
 
-def _check(ctx: Context, chunk: _Chunk, state: _State, n, q, s, position, screen: bool = True) -> None:
-    """Try candidates (cells n, configurations q, distances s) given in search order: each cell takes its
-    first candidate that keeps the margin, after at most ``max_checks`` exact checks. Candidates inside a
-    certified contact region of their cell (:class:`_Regions`) are not checked."""
-    world, margin = ctx.world, ctx.margin
+def _chunk(ctx: Context, targets, directions, distance_range, index, state: _State) -> _Chunk:
+    """The families of cells ``index`` (global), their scores on :data:`DISTANCE_SAMPLES` distances, and what
+    the reasons need (into ``state``)."""
+    system, world = ctx.system, ctx.world
+    targets, directions, distance_range = targets[index], directions[index], distance_range[index]
+    N = len(index)
+    s_grid = distance_range[:, :1] + (distance_range[:, 1:] - distance_range[:, :1]) * np.linspace(0, 1, DISTANCE_SAMPLES)
+    sources = targets[:, None, :] - s_grid[..., None] * directions[:, None, :]
+    grid_score = world.beam_bound(sources.reshape(-1, 3), np.repeat(directions, DISTANCE_SAMPLES, axis=0))
+    chunk = _Chunk(targets, directions, s_grid, grid_score.reshape(N, DISTANCE_SAMPLES), [], distance_range, index)
+    for hold in ctx.holds:
+        fam = closed_form.families(system, targets, directions, ctx.theta2, _frame(system, hold), ctx.q_ref,
+                                   distance_range)
+        state.angle_excess[index] = np.minimum(state.angle_excess[index], fam.angle_excess.min(axis=(1, 2)))
+        state.line_empty[index] |= np.any((fam.angle_excess == 0) & (fam.lo > fam.hi), axis=(1, 2))
+        idx = np.nonzero(fam.feasible)
+        if len(idx[0]):
+            chunk.families.append((hold, fam, idx))
+            state.searched[index[idx[0]]] = True
+    return chunk
+
+
+def _check(ctx: Context, state: _State, n, q, where, rank) -> None:
+    """Try candidates (global cells n, configurations q, (distance, roll) ``where``, ranks) given in search
+    order: each cell takes its first candidate that keeps the margin, after at most ``max_checks`` exact
+    checks. Candidates inside a certified contact region of their cell are not checked (they touch)."""
+    margin = ctx.margin
     limit = ctx.max_checks or MAX_EXACT_CHECKS
     rows = np.flatnonzero(~state.reachable[n] & (state.checks[n] < limit))
-    if len(rows):
-        rows = rows[~state.regions.contain(n[rows], s[rows])]
-    if screen and len(rows):
-        # Candidates that certainly touch never reach coal: a ball on the beam axis inside the source housing
-        # or the detector (whatever the roll) or a ball inside a moving part already within the margin.
-        d = chunk.directions[n[rows]]
-        rows = rows[~world.beam_certainly_closer(chunk.targets[n[rows]] - s[rows, :1] * d, d, margin)]
-        rows = rows[~world.certainly_closer(q[rows], margin)]
+    rows = rows[~state.regions.contain(n[rows], where[rows])]
     if not len(rows):
         return
-    distance, pair = world.clearances(q[rows], stop_below=margin)
+    distance, pair = ctx.world.clearances(q[rows], stop_below=margin)
     touching = []
-    for k, dk, pk in zip(rows.tolist(), distance.tolist(), pair.tolist()):
+    for i, (k, dk, pk) in enumerate(zip(rows.tolist(), distance.tolist(), pair.tolist())):
         cell = int(n[k])
         if state.reachable[cell] or state.checks[cell] >= limit:
             continue
         state.checks[cell] += 1
         if dk >= margin:
-            state.reachable[cell], state.q[cell], state.clearance[cell] = True, q[k], dk
-            state.found_at[cell] = position[k]
+            state.reachable[cell], state.q[cell], state.clearance[cell], state.rank[cell] = True, q[k], dk, rank[k]
         else:
-            touching.append(k)
+            touching.append(i)
             if dk < state.closest.get(cell, (np.inf, -1))[0]:
                 state.closest[cell] = (dk, pk)
     if touching:
-        touching = np.array(touching)
-        state.regions.add(n[touching], s[touching], distance[np.searchsorted(rows, touching)],
-                          pair[np.searchsorted(rows, touching)])
+        state.regions.add(n[rows[touching]], where[rows[touching]], distance[touching], pair[touching])
 
 
-class _Regions:
-    """Certified contact regions of a cell's candidates. Everything the orbital joint carries (source housing,
-    detector, C-arc) is one rigid body whose pose, for a view, is set by the distance s and the roll ρ about
-    the beam alone: a point of it moves by at most ``|Δs| + r |Δρ|``, r its distance from the beam axis. A
-    candidate (s_c, ρ_c) whose pair k (such a part against the fixed table or patient, convex shapes) is at
-    d_k < margin keeps that pair closer than the margin wherever ``|s − s_c| + r_k |ρ − ρ_c| < margin − d_k``
-    (signed distances of convex shapes change no faster than their points move), less coal's accuracy."""
-
-    def __init__(self, world, margin: float) -> None:
-        self.world, self.margin = world, margin
-        self.cell = np.zeros(0, dtype=int)
-        self.where = np.zeros((0, 2))
-        self.lever = np.zeros(0)
-        self.slack = np.zeros(0)
-
-    def add(self, cells, where, distances, pairs) -> None:
-        lever = self.world.roll_lever[np.maximum(pairs, 0)]
-        keep = (pairs >= 0) & np.isfinite(lever)
-        if not keep.any():
-            return
-        d = distances[keep]
-        self.cell = np.r_[self.cell, cells[keep]]
-        self.where = np.vstack((self.where, where[keep]))
-        self.lever = np.r_[self.lever, lever[keep]]
-        self.slack = np.r_[self.slack, self.margin - d - accuracy(np.abs(d))]
-
-    def contain(self, cells, where) -> np.ndarray:
-        """(M,) True where candidate (s, ρ) ``where[m]`` lies in a region of cell ``cells[m]``."""
-        out = np.zeros(len(cells), dtype=bool)
-        if not len(self.cell):
-            return out
-        order = np.argsort(self.cell, kind="stable")
-        sorted_cells = self.cell[order]
-        start = np.searchsorted(sorted_cells, cells, "left")
-        count = np.searchsorted(sorted_cells, cells, "right") - start
-        total = int(count.sum())
-        if not total:
-            return out
-        row = np.repeat(np.arange(len(cells)), count)
-        region = order[np.arange(total) - np.repeat(np.cumsum(count) - count, count) + np.repeat(start, count)]
-        delta = np.abs(where[row] - self.where[region])
-        delta[:, 1] = np.minimum(delta[:, 1], 2 * np.pi - delta[:, 1])
-        reach = delta[:, 0] + self.lever[region] * delta[:, 1]
-        out[row[reach < self.slack[region]]] = True
-        return out
+def solve_cells(ctx: Context, targets, directions, distance_range, workers: int = 1) -> Outcome:
+    """Search N cells: targets/directions (N, 3) in the table frame, distance_range (N, 2) (m), in chunks of
+    :data:`CHUNK` cells (the candidate arrays of a chunk stay in cache); with ``workers`` > 1 and at least
+    :data:`PARALLEL_MIN_CELLS` cells, in blocks over that many forked processes (cells are independent)."""
+    if workers > 1 and len(targets) >= PARALLEL_MIN_CELLS and "fork" in multiprocessing.get_all_start_methods():
+        return _solve_parallel(ctx, targets, directions, distance_range, workers)
+    return _solve(ctx, targets, directions, distance_range)
 
 
-def _solve_chunk(ctx: Context, targets, directions, distance_range) -> Outcome:
-    system, world = ctx.system, ctx.world
+#: What the forked workers search: set by :func:`_solve_parallel` before the fork, read by :func:`_solve_block`.
+_FORKED = None
+
+
+def _solve_block(bounds) -> Outcome:
+    ctx, targets, directions, distance_range = _FORKED
+    a, b = bounds
+    return _solve(ctx, targets[a:b], directions[a:b], distance_range[a:b])
+
+
+def _solve_parallel(ctx: Context, targets, directions, distance_range, workers: int) -> Outcome:
+    """Blocks of :data:`CHUNK` · 4 cells, handed out one at a time (contact cells cluster on a map), over
+    ``workers`` forked processes that inherit the search's world (coal's shapes cannot be pickled)."""
+    global _FORKED
+    N, size = len(targets), 4 * CHUNK
+    blocks = [(a, min(a + size, N)) for a in range(0, N, size)]
+    _FORKED = (ctx, targets, directions, distance_range)
+    try:
+        with multiprocessing.get_context("fork").Pool(min(workers, len(blocks))) as pool:
+            parts = pool.map(_solve_block, blocks, chunksize=1)
+    finally:
+        _FORKED = None
+    return Outcome(*(np.concatenate([getattr(p, f.name) for p in parts]) for f in dataclasses.fields(Outcome)))
+
+
+def _solve(ctx: Context, targets, directions, distance_range) -> Outcome:
+    system = ctx.system
     N = len(targets)
-    s_grid = distance_range[:, :1] + (distance_range[:, 1:] - distance_range[:, :1]) * np.linspace(0, 1, DISTANCE_SAMPLES)
-    sources = targets[:, None, :] - s_grid[..., None] * directions[:, None, :]
-    grid_score = world.beam_bound(sources.reshape(-1, 3), np.repeat(directions, DISTANCE_SAMPLES, axis=0))
-    chunk = _Chunk(targets, directions, s_grid, grid_score.reshape(N, DISTANCE_SAMPLES), [], distance_range)
-    angle_excess = np.full(N, np.inf)
-    line_empty = np.zeros(N, dtype=bool)
-    for hold in ctx.holds:
-        fam = closed_form.families(system, targets, directions, ctx.theta2, _frame(system, hold), ctx.q_ref,
-                                   distance_range)
-        angle_excess = np.minimum(angle_excess, fam.angle_excess.min(axis=(1, 2)))
-        line_empty |= np.any((fam.angle_excess == 0) & (fam.lo > fam.hi), axis=(1, 2))
-        idx = np.nonzero(fam.feasible)
-        if len(idx[0]):
-            chunk.families.append((hold, fam, idx))
     state = _State(np.zeros(N, dtype=bool), np.full((N, system.nq), np.nan), np.full(N, np.nan),
-                   np.zeros(N, dtype=int), {}, np.full(N, -1), _Regions(world, ctx.margin))
-    searched = np.zeros(N, dtype=bool)
-    # Most cells are decided by their first candidate: it is found among the best-scored distances alone, and
-    # only the cells it leaves undecided get every candidate.
-    first = _candidates(ctx, chunk, (0,))
-    if first is not None:
-        n, q, s, position = _ordered(first)
-        searched[n] = True
-        head = position == 0
-        _check(ctx, chunk, state, n[head], q[head], s[head], position[head], screen=False)
-        left = searched & ~state.reachable
-        rest = _candidates(ctx, chunk, range(len(DISTANCE_CHOICES) + 1), cells=left) if left.any() else None
-        if rest is not None:
-            n, q, s, position = _ordered(rest)
-            keep = position > 0
-            n, q, s, position = n[keep], q[keep], s[keep], position[keep]
-            first, size = 1, 1
-            while len(n) and first <= int(position.max()):
-                # Rounds grow to ROUND candidates per cell (a round's cost is mostly fixed).
-                rows = np.flatnonzero((position >= first) & (position < first + size))
-                first, size = first + size, min(2 * size, ROUND)
-                _check(ctx, chunk, state, n[rows], q[rows], s[rows], position[rows], screen=SCREEN)
-    reachable, q_out, clearance = state.reachable, state.q, state.clearance
+                   np.zeros(N, dtype=int), np.full(N, -1), np.zeros(N, dtype=bool), np.full(N, np.inf),
+                   np.zeros(N, dtype=bool), Regions(ctx.world, ctx.margin))
+    # Every cell's first candidate: the best-scored distance of its best family.
+    for a in range(0, N, CHUNK):
+        chunk = _chunk(ctx, targets, directions, distance_range, np.arange(a, min(a + CHUNK, N)), state)
+        first = _candidates(ctx, chunk, (0,))
+        if first is not None:
+            n, q, where, rank = _ordered(first)
+            head = rank == 0
+            _check(ctx, state, chunk.index[n[head]], q[head], where[head], rank[head])
+    # The rest, for the cells their first candidate left open, in rounds of growing size.
+    left = np.flatnonzero(state.searched & ~state.reachable)
+    for a in range(0, len(left), CHUNK):
+        chunk = _chunk(ctx, targets, directions, distance_range, left[a:a + CHUNK], state)
+        rest = _candidates(ctx, chunk, range(len(DISTANCE_CHOICES) + 1))
+        if rest is None:
+            continue
+        n, q, where, rank = _ordered(rest)
+        keep = rank > 0
+        n, q, where, rank = chunk.index[n[keep]], q[keep], where[keep], rank[keep]
+        start, size = 1, 1
+        while len(n) and start <= int(rank.max()):
+            rows = np.flatnonzero((rank >= start) & (rank < start + size))
+            start, size = start + size, min(2 * size, ROUND)
+            _check(ctx, state, n[rows], q[rows], where[rows], rank[rows])
+    return _outcome(ctx, state, targets)
+
+
+def _outcome(ctx: Context, state: _State, targets) -> Outcome:
+    system, world, margin = ctx.system, ctx.world, ctx.margin
+    N = len(targets)
+    reachable = state.reachable
     distance = np.full(N, np.nan)
     reason = np.full(N, None, dtype=object)
     binding = np.full(N, "", dtype=object)
     if reachable.any():
-        T = system.fk(q_out[reachable])
+        T = system.fk(state.q[reachable])
         distance[reachable] = np.einsum("ij,ij->i", targets[reachable] - T[:, :3, 3], T[:, :3, 2])
     for cell in np.flatnonzero(~reachable).tolist():
-        if searched[cell]:
+        if state.searched[cell]:
             d, pair = state.closest.get(cell, (-np.inf, -1))
             if pair < 0:
                 reason[cell] = (f"contact: every roll and distance in range brings a part of the C-arm within the "
-                                f"margin ({ctx.margin * 1e3:.1f} mm) of the table or the patient")
+                                f"margin ({margin * 1e3:.1f} mm) of the table or the patient")
             else:
                 a, b = world.pair_names(pair)
-                reason[cell] = f"contact: {a} – {b} at {d * 1e3:.1f} mm (margin {ctx.margin * 1e3:.1f} mm)"
+                reason[cell] = f"contact: {a} – {b} at {d * 1e3:.1f} mm (margin {margin * 1e3:.1f} mm)"
             binding[cell] = "contact"
-        elif np.isfinite(angle_excess[cell]) and angle_excess[cell] > 0 and not line_empty[cell]:
+        elif np.isfinite(state.angle_excess[cell]) and state.angle_excess[cell] > 0 and not state.line_empty[cell]:
             reason[cell] = "joint limits: no roll puts the beam along the view within the angular and orbital ranges"
             binding[cell] = "angular/orbital"
         else:
             reason[cell] = ("joint limits: no distance in the range puts the beam through the target within the "
                             "translation ranges (table translation, vertical, horizontal)")
             binding[cell] = "translations"
-    global LAST_FOUND_AT
-    LAST_FOUND_AT = state.found_at
-    return Outcome(reachable, q_out, clearance, distance, reason, binding)
+    return Outcome(reachable, state.q, state.clearance, distance, reason, binding, state.rank)

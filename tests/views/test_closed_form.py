@@ -50,31 +50,3 @@ def test_motorized_tables(data, s0):
     system = data.draw(motorized_systems(min_joints=1))
     q = data.draw(configurations(system))
     _check_found(system, q, s0)
-
-
-def test_certain_contacts_are_contacts():
-    """The vectorised screen (inscribed spheres, link poses from the closed form) never flags a configuration
-    that a fresh collision scene finds clear of the margin; its link poses are the system's own."""
-    import carmkin
-    from carmkin.patient import ParametricPatient
-    from carmkin.robot import validity
-    from carmkin.robot.collision import CollisionScene
-    from carmkin.views.clearance import World, _link_poses
-
-    for name in carmkin.list_presets():
-        system = carmkin.load_preset(name)
-        patient = ParametricPatient.on_table(system)
-        world = World(system, patient.obstacles())
-        scene = CollisionScene.from_system(system, patient.obstacles())
-        rng = np.random.default_rng(0)
-        Q = system.lower + rng.random((1000, system.nq)) * (system.upper - system.lower)
-        frames, source = _link_poses(system, Q)
-        np.testing.assert_allclose(frames, system.dh_frames(Q), atol=1e-12)
-        np.testing.assert_allclose(source, system.fk(Q), atol=1e-12)
-        flagged = world.certainly_closer(Q, 0.02)
-        for q in Q[flagged]:
-            assert validity.check(system, q, scene=scene).min_distance < 0.02
-        for q in Q[:40]:
-            d, _ = world.clearance(q)
-            assert abs(d - scene.distances(q=q).min()) < 1e-12
-        assert flagged.any()
