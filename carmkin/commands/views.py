@@ -52,6 +52,8 @@ def register(parser: argparse.ArgumentParser) -> None:
     plan.add_argument("--standard", metavar="NAME", help="a standard view's name ('list' lists them)")
     plan.add_argument("--distance-mm", type=common.number(0.0, 10000.0, open_minimum=True, unit="mm"),
                       help="source-to-target distance (mm; default: free)")
+    plan.add_argument("--rotation-deg", type=common.number(-180.0, 180.0, unit="deg"),
+                      help="detector rotation about the beam (deg, as the plan prints it; default: free)")
     plan.add_argument("--q-mm-deg", metavar="Q", help="current joints (mm, deg): the plan moves least from them")
     plan.add_argument("--json", action="store_true", help="print the plan as JSON")
     plan.set_defaults(action_run=_plan)
@@ -97,12 +99,15 @@ def _plan(args: argparse.Namespace) -> int:
     if args.standard is not None:
         if args.primary_deg is not None or args.secondary_deg is not None:
             raise common.UsageError("--standard: give either a standard view or --primary-deg/--secondary-deg, not both")
-        view = standard_view(args.standard, target, position)
-        view = View(view.target, view.direction, distance, view.name)
+        standard = standard_view(args.standard, target, position)
+        angles = STANDARD_VIEWS[standard.name]
+        view = View.from_angles(angles.primary_deg, angles.secondary_deg, target, position, distance, standard.name,
+                                args.rotation_deg)
     elif args.primary_deg is None or args.secondary_deg is None:
         raise common.UsageError("--primary-deg and --secondary-deg (or --standard NAME) are required")
     else:
-        view = View.from_angles(args.primary_deg, args.secondary_deg, target, position, distance)
+        view = View.from_angles(args.primary_deg, args.secondary_deg, target, position, distance,
+                                rotation_deg=args.rotation_deg)
     q_current = None if args.q_mm_deg is None else common.parse_joints(args.q_mm_deg, system, "--q-mm-deg")
     plan = plan_view(system, view, patient, q_current, margin=args.margin_mm / MM)
     if args.json:
@@ -110,6 +115,14 @@ def _plan(args: argparse.Namespace) -> int:
     else:
         _print_plan(system, plan, position)
     return 0 if plan.success else 1
+
+
+def _rotation(system, q, position) -> float:
+    """The detector's rotation about the beam (deg) at q, as :func:`carmkin.interop.dicom.xa_angles` reads it."""
+    from carmkin.interop.dicom import xa_angles
+    from carmkin.views.view import _patient_frame
+
+    return float(xa_angles(system.fk(q), _patient_frame(position))[2])
 
 
 def _describe_view(view, position) -> str:
@@ -121,7 +134,10 @@ def _print_plan(system, plan, position) -> None:
     print(f"view {plan.view.name or ''} {_describe_view(plan.view, position)}".replace("  ", " "))
     if plan.success:
         print(f"reachable: q = {common.format_joints(system, plan.q)}")
-        print(f"clearance {plan.clearance * MM:.1f} mm, source-to-target {plan.distance * MM:.1f} mm")
+        print(f"clearance {plan.clearance * MM:.1f} mm, source-to-target {plan.distance * MM:.1f} mm, "
+              f"rotation about the beam {_rotation(system, plan.q, position):.1f}°")
+        if plan.solver == "qp":
+            print("  found by the QP with the motorized table's joints free (the closed form holds them)")
         for m in plan.moves:
             print(f"  move {m.joint}: {'clear' if m.clear else 'blocked'}" + (f" ({m.reason})" if m.reason else ""))
         return
@@ -129,14 +145,16 @@ def _print_plan(system, plan, position) -> None:
     if plan.nearest is not None:
         n = plan.nearest
         print(f"nearest reachable view: {_describe_view(n.view, position)}, {np.degrees(plan.angle):.2f}° away, "
+              f"rotation about the beam {_rotation(system, n.q, position):.1f}°, "
               f"q = {common.format_joints(system, n.q)}, clearance {n.clearance * MM:.1f} mm")
 
 
 def _plan_json(system, plan, position) -> dict:
     out = {"success": plan.success, "angles_deg": list(plan.view.angles(position)),
-           "reason": plan.reason, "binding": plan.binding}
+           "reason": plan.reason, "binding": plan.binding, "solver": plan.solver}
     if plan.success:
-        out.update(q=common.joints_json(system, plan.q), clearance_mm=plan.clearance * MM, distance_mm=plan.distance * MM)
+        out.update(q=common.joints_json(system, plan.q), clearance_mm=plan.clearance * MM, distance_mm=plan.distance * MM,
+                   rotation_deg=_rotation(system, plan.q, position))
     if plan.nearest is not None:
         out["nearest"] = {"angles_deg": list(plan.nearest.view.angles(position)), "angle_deg": float(np.degrees(plan.angle)),
                           "q": common.joints_json(system, plan.nearest.q), "clearance_mm": plan.nearest.clearance * MM}
@@ -167,7 +185,7 @@ def _map(args: argparse.Namespace) -> int:
     print(f"preset {system.name}: {int(m.reachable.sum())} of {m.reachable.size} views reachable "
           f"({100 * m.fraction:.1f} %), primary {primary[0]:g}..{primary[-1]:g}°, secondary "
           f"{secondary[0]:g}..{secondary[-1]:g}° at {args.step_deg:g}°")
-    for binding in ("angular/orbital", "translations", "contact"):
+    for binding in ("angular/orbital", "translations", "wigwag", "contact"):
         count = int(np.sum(m.binding == binding))
         if count:
             print(f"  unreachable by {binding}: {count}")

@@ -31,6 +31,10 @@ PLANE_TOLERANCE = 1e-12
 #: Ranges are met to half the joint-range tolerance, so that the rounding of the joints computed from λ
 #: keeps them within :data:`~carmkin.model.params.JOINT_RANGE_TOLERANCE` (a value on a limit is in range).
 INTERVAL_TOLERANCE = 0.5 * JOINT_RANGE_TOLERANCE
+#: A fixed roll's wigwag values are refined until they bracket it this tightly (rad).
+ROLL_ROOT_TOLERANCE = 1e-13
+#: A family has a fixed roll where its source's x axis is this close to the wanted one (rad).
+ROLL_TOLERANCE = 1e-9
 #: Below this, |(U_x, G_x)| leaves the distance line undefined (the family is skipped; its neighbours in θ2
 #: are not) and |cos θ5| makes θ4 a free roll (it keeps the reference value).
 DEGENERATE = 1e-12
@@ -168,3 +172,76 @@ def joints(system, fam: Families, index, lam, q_hold) -> np.ndarray:
     q[:, nq - 2] = theta[:, 1]
     q[:, nq - 1] = theta[:, 2]
     return q
+
+
+def source_x_axes(theta2, theta4, frame) -> np.ndarray:
+    """The source's x axis (..., 3) in the table frame for wigwag θ2 and angular θ4 (rad, arrays of one
+    shape): (−c2 c4, −s2 c4, s4) in the C-arm base frame (:class:`~carmkin.model.kinematics.ClosedFormFK`),
+    turned by the base frame's rotation ``frame[:3, :3]``."""
+    c4 = np.cos(theta4)
+    x = np.stack((-np.cos(theta2) * c4, -np.sin(theta2) * c4, np.sin(theta4)), axis=-1)
+    return x @ np.asarray(frame)[:3, :3].T
+
+
+def roll_error(system, directions, x_axes, theta2, frame) -> np.ndarray:
+    """(N, K, 2) signed angle (rad) about each beam from the wanted x axis ``x_axes`` (N, 3) (unit, ⊥ the
+    beam) to the source's x axis of the family (θ2 ``theta2`` (N, K), sign σ); NaN where θ4 is a free roll."""
+    B = np.asarray(frame)[:3, :3]
+    z1 = directions @ B
+    c2, s2 = np.cos(theta2), np.sin(theta2)
+    Ux = c2 * z1[:, :1] + s2 * z1[:, 1:2]
+    Uz = np.broadcast_to(z1[:, 2:3], Ux.shape)
+    sigma = np.array([1.0, -1.0])
+    theta4 = np.arctan2(sigma * Ux[..., None], sigma * Uz[..., None])
+    degenerate = (np.hypot(Ux, Uz) <= DEGENERATE)[..., None]
+    x = source_x_axes(np.broadcast_to(theta2[..., None], theta4.shape), theta4, frame)
+    wanted = x_axes[:, None, None, :]
+    sine = np.einsum("nksi,ni->nks", np.cross(wanted, x), directions)
+    cosine = np.einsum("nksi,nksi->nks", np.broadcast_to(wanted, x.shape), x)
+    return np.where(degenerate, np.nan, np.arctan2(sine, cosine))
+
+
+def theta2_for_roll(system, directions, x_axes, theta2, frame) -> np.ndarray:
+    """(N, R) wigwag values (rad, NaN-padded) at which a family of the beam ``directions`` (N, 3) has the
+    source's x axis along ``x_axes`` (N, 3): sign changes of :func:`roll_error` over the samples ``theta2``
+    (K,), refined by bisection to :data:`ROLL_ROOT_TOLERANCE` (vectorised over every bracket)."""
+    N = len(directions)
+    grid = np.broadcast_to(np.asarray(theta2, dtype=float), (N, len(theta2)))
+    e = roll_error(system, directions, x_axes, grid, frame)  # (N, K, 2)
+    with np.errstate(invalid="ignore"):
+        exact = np.abs(e) <= ROLL_ROOT_TOLERANCE
+        # A zero crossing, not the ±π wrap: the two ends are within π of each other across zero.
+        crossing = (np.sign(e[:, :-1]) * np.sign(e[:, 1:]) < 0) & (np.abs(e[:, :-1]) + np.abs(e[:, 1:]) < np.pi)
+    n, k, sigma = np.nonzero(crossing)
+    a, b = grid[n, k].copy(), grid[n, k + 1].copy()
+    ea = e[n, k, sigma]
+    for _ in range(200):
+        if not len(a) or np.max(b - a) <= ROLL_ROOT_TOLERANCE:
+            break
+        m = 0.5 * (a + b)
+        em = roll_error(system, directions[n], x_axes[n], m[:, None], frame)[np.arange(len(m)), 0, sigma]
+        left = np.sign(em) == np.sign(ea)
+        a, ea = np.where(left, m, a), np.where(left, em, ea)
+        b = np.where(left, b, m)
+    ne, ke, _ = np.nonzero(exact)
+    cells = np.r_[n, ne]
+    values = np.r_[0.5 * (a + b), grid[ne, ke]]
+    out = np.full((N, max(1, int(np.bincount(cells, minlength=N).max()) if len(cells) else 1)), np.nan)
+    order = np.lexsort((values, cells))
+    cells, values = cells[order], values[order]
+    slot = np.arange(len(cells)) - np.searchsorted(cells, cells, "left")
+    out[cells, slot] = values
+    return out
+
+
+def with_roll(fam: Families, system, directions, x_axes, frame, rows) -> Families:
+    """``fam`` with only the families of cells ``rows`` (bool (N,)) whose source x axis is along ``x_axes``
+    (to :data:`ROLL_TOLERANCE`) left feasible there (the others' λ intervals emptied)."""
+    import dataclasses
+
+    idx = np.flatnonzero(rows)
+    e = roll_error(system, directions[idx], x_axes[idx], fam.theta[idx, :, 0, 0], frame)
+    off = np.zeros(fam.lo.shape, dtype=bool)
+    with np.errstate(invalid="ignore"):
+        off[idx] = ~(np.abs(e) <= ROLL_TOLERANCE)
+    return dataclasses.replace(fam, lo=np.where(off, np.inf, fam.lo), hi=np.where(off, -np.inf, fam.hi))

@@ -75,7 +75,7 @@ def reach_map(system, target, primary_deg=np.arange(-90, 91), secondary_deg=np.a
     ctx = search.make_context(system, world, margin, reference(system, None), table_samples)
     n = len(directions)
     ranges = np.tile([0.0, system.carm.source_to_detector], (n, 1))
-    out = search.solve_cells(ctx, np.tile(target, (n, 1)), directions, ranges, _workers(workers))
+    out = search.solve_cells(ctx, np.tile(target, (n, 1)), directions, ranges, workers=_workers(workers))
     shape = (len(p), len(s))
     return ReachMap(p, s, target, directions.reshape(shape + (3,)), out.reachable.reshape(shape),
                     out.q.reshape(shape + (system.nq,)), out.clearance.reshape(shape), out.distance.reshape(shape),

@@ -7,7 +7,7 @@
   :data:`carmkin.reposition.guidance.DEFAULT_ORDER`, each swept for collision by conservative advancement
   (:func:`carmkin.reposition.guidance.sweep`, as repositioning does);
 * when the view is unreachable: the **nearest reachable view** (smallest angle between beam axes, same
-  target), searched in bands of :data:`NEAREST_BAND` of angle; each band holds rings of directions
+  target; for a view with a fixed roll, first the same beam with any roll), searched in bands of :data:`NEAREST_BAND` of angle; each band holds rings of directions
   about the axis and the integer-degree (primary, secondary) grid directions of the patient in that band,
   so the answer is never farther than the nearest reachable cell of an integer-degree map.
 
@@ -27,7 +27,7 @@ from carmkin.patient.obstacles import as_obstacles
 from carmkin.robot.collision import Obstacle
 from carmkin.validation import real_array, real_scalar
 
-from . import search
+from . import refine, search
 from .view import View, _patient_frame
 
 #: Default clearance (m) every moving part keeps from patient, table and floor.
@@ -74,6 +74,7 @@ class ViewPlan:
     moves: tuple = ()
     nearest: "ViewPlan | None" = None
     angle: float = 0.0
+    solver: str = "closed form"
 
 
 def patient_obstacles(patient) -> tuple:
@@ -160,18 +161,26 @@ def _resolve(view, patient) -> View:
 
 
 def plan_view(system, view, patient=None, q_current=None, *, margin: float = DEFAULT_MARGIN,
-              nearest: bool = True, table_samples=None) -> ViewPlan:
+              nearest: bool = True, table_samples=None, qp: bool = True) -> ViewPlan:
     """Plan ``view`` (a :class:`View`, or a standard view's name: its target is then the table origin) on
     any ``system``: free roll and distance used for clearance (≥ ``margin``, m), then least motion from
     ``q_current`` (nq,) (default mid-range). ``patient``: a patient model or a list of
     :class:`~carmkin.robot.collision.Obstacle`. ``table_samples``: held configurations (k, nq) whose table
-    joints a motorized table may take (default: those of the reference)."""
+    joints a motorized table may take (default: those of the reference). ``qp``: when the closed form leaves
+    the view unreachable on a motorized table, try again with its joints free (:mod:`carmkin.views.refine`;
+    :func:`reach_map` holds them)."""
     view = _resolve(view, patient)
     margin = real_scalar(margin, "margin", error=ViewError, low=0.0, high=1.0, unit="m")
     world = world_for(system, patient)
     q_ref = reference(system, q_current)
     ctx = search.make_context(system, world, margin, q_ref, table_samples)
     plan = _plan_cells(ctx, [view])[0]
+    if not plan.success and qp and view.x_axis is None and refine.frees_joints(system):
+        found = refine.refine(ctx, np.array(view.target), view.axis, distance_range(system, view)[0])
+        if found is not None:
+            q, clearance, distance = found
+            plan = _replace(plan, success=True, q=q, clearance=clearance, distance=distance, reason=None, binding="",
+                            solver="qp")
     if plan.success and q_current is not None:
         plan = _with_moves(plan, system, world, q_ref)
     if not plan.success and nearest:
@@ -183,7 +192,8 @@ def _plan_cells(ctx, views) -> list[ViewPlan]:
     targets = np.array([v.target for v in views])
     directions = np.array([v.direction for v in views])
     ranges = np.vstack([distance_range(ctx.system, v) for v in views])
-    out = search.solve_cells(ctx, targets, directions, ranges)
+    x_axes = np.array([v.x_axis if v.x_axis is not None else (np.nan,) * 3 for v in views], dtype=float)
+    out = search.solve_cells(ctx, targets, directions, ranges, x_axes)
     return [ViewPlan(v, bool(out.reachable[i]), out.q[i], float(out.clearance[i]), float(out.distance[i]),
                      out.reason[i], str(out.binding[i])) for i, v in enumerate(views)]
 
@@ -253,6 +263,10 @@ def beam_directions(R_patient, primary, secondary) -> np.ndarray:
 def _with_nearest(plan: ViewPlan, ctx, view: View, patient) -> ViewPlan:
     import dataclasses
 
+    if view.x_axis is not None:  # the same beam with any roll first
+        free = _plan_cells(ctx, [dataclasses.replace(view, x_axis=None, name=f"{view.name} (any roll)".strip())])[0]
+        if free.success:
+            return _replace(plan, nearest=free, angle=0.0)
     frame = _patient_frame(patient if patient is not None and hasattr(patient, "pose") else "HFS")
     quick = dataclasses.replace(ctx, max_checks=RING_CHECKS)
     lo = 0.0

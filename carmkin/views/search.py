@@ -124,11 +124,8 @@ def _candidates(ctx: Context, chunk, kinds):
         best = np.argmax(masked, axis=1)
         has = inside.any(axis=1)
         s_star = np.where(has, s_grid[n, best], 0.5 * (s_lo + s_hi))
-        # The roll about the beam, the same for every distance of a family: the source's x axis is
-        # (−c2 c4, −s2 c4, s4) in the C-arm base frame (ClosedFormFK), turned by the base frame.
-        th2, th4 = fam.theta[idx][:, 0], fam.theta[idx][:, 1]
-        x = (np.stack((-np.cos(th2) * np.cos(th4), -np.sin(th2) * np.cos(th4), np.sin(th4)), axis=1)
-             @ _frame(system, hold)[:3, :3].T)
+        # The roll about the beam, the same for every distance of a family.
+        x = closed_form.source_x_axes(fam.theta[idx][:, 0], fam.theta[idx][:, 1], _frame(system, hold))
         roll = np.arctan2(np.einsum("ij,ij->i", x, e2[n]), np.einsum("ij,ij->i", x, e1[n]))
         for kind in kinds:
             # Distance choices per family: the best-scored one and points spread over its interval (the
@@ -219,23 +216,44 @@ class _State:
     angle_excess: np.ndarray
     line_empty: np.ndarray
     regions: Regions
+    no_roll: np.ndarray  # a fixed roll that no wigwag value in range gives
     closest: dict = field(default_factory=dict)  # cell -> (distance, pair) of its closest exact check
 
+    @classmethod
+    def empty(cls, N: int, nq: int, regions: Regions) -> "_State":
+        flags = [np.zeros(N, dtype=bool) for _ in range(4)]
+        return cls(flags[0], np.full((N, nq), np.nan), np.full(N, np.nan), np.zeros(N, dtype=int), np.full(N, -1),
+                   flags[1], np.full(N, np.inf), flags[2], regions, flags[3])
 
-def _chunk(ctx: Context, targets, directions, distance_range, index, state: _State) -> _Chunk:
+
+def _chunk(ctx: Context, targets, directions, distance_range, x_axes, index, state: _State) -> _Chunk:
     """The families of cells ``index`` (global), their scores on :data:`DISTANCE_SAMPLES` distances, and what
-    the reasons need (into ``state``)."""
+    the reasons need (into ``state``). A cell with a fixed roll (a finite row of ``x_axes``) gets the wigwag
+    values of that roll instead of the samples, and only the families that have it."""
     system, world = ctx.system, ctx.world
     targets, directions, distance_range = targets[index], directions[index], distance_range[index]
+    x_axes = x_axes[index]
+    fixed = np.all(np.isfinite(x_axes), axis=1)
     N = len(index)
     s_grid = distance_range[:, :1] + (distance_range[:, 1:] - distance_range[:, :1]) * np.linspace(0, 1, DISTANCE_SAMPLES)
     sources = targets[:, None, :] - s_grid[..., None] * directions[:, None, :]
     grid_score = world.beam_bound(sources.reshape(-1, 3), np.repeat(directions, DISTANCE_SAMPLES, axis=0))
     chunk = _Chunk(targets, directions, s_grid, grid_score.reshape(N, DISTANCE_SAMPLES), [], distance_range, index)
     for hold in ctx.holds:
-        fam = closed_form.families(system, targets, directions, ctx.theta2, _frame(system, hold), ctx.q_ref,
-                                   distance_range)
-        state.angle_excess[index] = np.minimum(state.angle_excess[index], fam.angle_excess.min(axis=(1, 2)))
+        frame = _frame(system, hold)
+        theta2 = ctx.theta2
+        if fixed.any():
+            roots = closed_form.theta2_for_roll(system, directions, x_axes, ctx.theta2, frame)
+            theta2 = np.full((N, max(len(ctx.theta2), roots.shape[1])), np.nan)
+            theta2[~fixed, :len(ctx.theta2)] = ctx.theta2
+            theta2[fixed, :roots.shape[1]] = roots[fixed]
+            state.no_roll[index[fixed & np.all(np.isnan(roots), axis=1)]] = True
+        with np.errstate(invalid="ignore"):  # NaN-padded wigwag values make empty families
+            fam = closed_form.families(system, targets, directions, theta2, frame, ctx.q_ref, distance_range)
+            if fixed.any():
+                fam = closed_form.with_roll(fam, system, directions, x_axes, frame, fixed)
+        excess = np.where(np.isnan(fam.angle_excess), np.inf, fam.angle_excess).min(axis=(1, 2))
+        state.angle_excess[index] = np.minimum(state.angle_excess[index], excess)
         state.line_empty[index] |= np.any((fam.angle_excess == 0) & (fam.lo > fam.hi), axis=(1, 2))
         idx = np.nonzero(fam.feasible)
         if len(idx[0]):
@@ -271,13 +289,16 @@ def _check(ctx: Context, state: _State, n, q, where, rank) -> None:
         state.regions.add(n[rows[touching]], where[rows[touching]], distance[touching], pair[touching])
 
 
-def solve_cells(ctx: Context, targets, directions, distance_range, workers: int = 1) -> Outcome:
-    """Search N cells: targets/directions (N, 3) in the table frame, distance_range (N, 2) (m), in chunks of
-    :data:`CHUNK` cells (the candidate arrays of a chunk stay in cache); with ``workers`` > 1 and at least
-    :data:`PARALLEL_MIN_CELLS` cells, in blocks over that many forked processes (cells are independent)."""
+def solve_cells(ctx: Context, targets, directions, distance_range, x_axes=None, workers: int = 1) -> Outcome:
+    """Search N cells: targets/directions (N, 3) in the table frame, distance_range (N, 2) (m), ``x_axes``
+    (N, 3): the source's x axis where a cell's roll is fixed (unit, ⊥ its beam), NaN rows (or None) where it
+    is free; in chunks of :data:`CHUNK` cells (the candidate arrays of a chunk stay in cache); with
+    ``workers`` > 1 and at least :data:`PARALLEL_MIN_CELLS` cells, in blocks over that many forked processes
+    (cells are independent)."""
+    x_axes = np.full((len(targets), 3), np.nan) if x_axes is None else np.asarray(x_axes, dtype=float)
     if workers > 1 and len(targets) >= PARALLEL_MIN_CELLS and "fork" in multiprocessing.get_all_start_methods():
-        return _solve_parallel(ctx, targets, directions, distance_range, workers)
-    return _solve(ctx, targets, directions, distance_range)
+        return _solve_parallel(ctx, targets, directions, distance_range, x_axes, workers)
+    return _solve(ctx, targets, directions, distance_range, x_axes)
 
 
 #: What the forked workers search: set by :func:`_solve_parallel` before the fork, read by :func:`_solve_block`.
@@ -285,18 +306,18 @@ _FORKED = None
 
 
 def _solve_block(bounds) -> Outcome:
-    ctx, targets, directions, distance_range = _FORKED
+    ctx, targets, directions, distance_range, x_axes = _FORKED
     a, b = bounds
-    return _solve(ctx, targets[a:b], directions[a:b], distance_range[a:b])
+    return _solve(ctx, targets[a:b], directions[a:b], distance_range[a:b], x_axes[a:b])
 
 
-def _solve_parallel(ctx: Context, targets, directions, distance_range, workers: int) -> Outcome:
+def _solve_parallel(ctx: Context, targets, directions, distance_range, x_axes, workers: int) -> Outcome:
     """Blocks of :data:`CHUNK` · 4 cells, handed out one at a time (contact cells cluster on a map), over
     ``workers`` forked processes that inherit the search's world (coal's shapes cannot be pickled)."""
     global _FORKED
     N, size = len(targets), 4 * CHUNK
     blocks = [(a, min(a + size, N)) for a in range(0, N, size)]
-    _FORKED = (ctx, targets, directions, distance_range)
+    _FORKED = (ctx, targets, directions, distance_range, x_axes)
     try:
         with multiprocessing.get_context("fork").Pool(min(workers, len(blocks))) as pool:
             parts = pool.map(_solve_block, blocks, chunksize=1)
@@ -305,15 +326,13 @@ def _solve_parallel(ctx: Context, targets, directions, distance_range, workers: 
     return Outcome(*(np.concatenate([getattr(p, f.name) for p in parts]) for f in dataclasses.fields(Outcome)))
 
 
-def _solve(ctx: Context, targets, directions, distance_range) -> Outcome:
+def _solve(ctx: Context, targets, directions, distance_range, x_axes) -> Outcome:
     system = ctx.system
     N = len(targets)
-    state = _State(np.zeros(N, dtype=bool), np.full((N, system.nq), np.nan), np.full(N, np.nan),
-                   np.zeros(N, dtype=int), np.full(N, -1), np.zeros(N, dtype=bool), np.full(N, np.inf),
-                   np.zeros(N, dtype=bool), Regions(ctx.world, ctx.margin))
+    state = _State.empty(N, system.nq, Regions(ctx.world, ctx.margin))
     # Every cell's first candidate: the best-scored distance of its best family.
     for a in range(0, N, CHUNK):
-        chunk = _chunk(ctx, targets, directions, distance_range, np.arange(a, min(a + CHUNK, N)), state)
+        chunk = _chunk(ctx, targets, directions, distance_range, x_axes, np.arange(a, min(a + CHUNK, N)), state)
         first = _candidates(ctx, chunk, (0,))
         if first is not None:
             n, q, where, rank = _ordered(first)
@@ -322,7 +341,7 @@ def _solve(ctx: Context, targets, directions, distance_range) -> Outcome:
     # The rest, for the cells their first candidate left open, in rounds of growing size.
     left = np.flatnonzero(state.searched & ~state.reachable)
     for a in range(0, len(left), CHUNK):
-        chunk = _chunk(ctx, targets, directions, distance_range, left[a:a + CHUNK], state)
+        chunk = _chunk(ctx, targets, directions, distance_range, x_axes, left[a:a + CHUNK], state)
         rest = _candidates(ctx, chunk, range(len(DISTANCE_CHOICES) + 1))
         if rest is None:
             continue
@@ -357,6 +376,9 @@ def _outcome(ctx: Context, state: _State, targets) -> Outcome:
                 a, b = world.pair_names(pair)
                 reason[cell] = f"contact: {a} – {b} at {d * 1e3:.1f} mm (margin {margin * 1e3:.1f} mm)"
             binding[cell] = "contact"
+        elif state.no_roll[cell]:
+            reason[cell] = "joint limits: no wigwag within its range gives this rotation about the beam"
+            binding[cell] = "wigwag"
         elif np.isfinite(state.angle_excess[cell]) and state.angle_excess[cell] > 0 and not state.line_empty[cell]:
             reason[cell] = "joint limits: no roll puts the beam along the view within the angular and orbital ranges"
             binding[cell] = "angular/orbital"

@@ -2,7 +2,9 @@
 
 A :class:`View` is the unit direction of the principal axis (source → detector) and the target point it
 passes through, both in the table frame 0 (m); the source–target ``distance`` (m) is given or left to the
-C-arm (``None``: anywhere with the target between source and detector). The roll about the beam is free.
+C-arm (``None``: anywhere with the target between source and detector). The roll about the beam is free,
+or fixed by ``x_axis``: the direction the source frame's x axis (the image's rows) should take, projected
+onto the plane across the beam (so any vector not along the beam names one roll).
 
 Built from DICOM XA angles for any Patient Position (PS3.3 C.8.7.5.1.2: primary LAO +, RAO −; secondary
 CRA +, CAU −) through :func:`carmkin.interop.dicom.pose_from_xa_angles`, from a direction, from a target
@@ -55,16 +57,26 @@ def _patient_frame(position):
 @dataclass(frozen=True)
 class View:
     """Beam ``direction`` (3,) unit, source → detector, through ``target`` (3,) m, table frame; ``distance``
-    source–target (m) or ``None`` (free); ``name`` for people."""
+    source–target (m) or ``None`` (free); ``name`` for people; ``x_axis`` (3,) the source frame's x axis
+    (unit, across the beam: the given vector projected) or ``None`` (free roll)."""
 
     target: tuple
     direction: tuple
     distance: float | None = None
     name: str = ""
+    x_axis: tuple | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "target", tuple(_point(self.target, "target").tolist()))
         object.__setattr__(self, "direction", tuple(_unit(self.direction, "direction").tolist()))
+        if self.x_axis is not None:
+            z = np.array(self.direction)
+            x = real_array(self.x_axis, "x_axis", (3,), error=ViewError)
+            across = x - (x @ z) * z
+            if np.linalg.norm(across) < DIRECTION_TOLERANCE * max(1.0, float(np.linalg.norm(x))):
+                raise ViewError(f"x_axis must not lie along the beam direction {np.round(z, 6).tolist()}, got "
+                                f"{x.tolist()}")
+            object.__setattr__(self, "x_axis", tuple((across / np.linalg.norm(across)).tolist()))
         if self.distance is not None:
             object.__setattr__(self, "distance", real_scalar(self.distance, "distance", error=ViewError,
                                                              low=DIRECTION_TOLERANCE, high=10.0, unit="m"))
@@ -73,14 +85,30 @@ class View:
 
     # --- constructors ------------------------------------------------------------------------------------
     @classmethod
-    def from_angles(cls, primary_deg, secondary_deg, target, position="HFS", distance=None, name="") -> "View":
+    def from_angles(cls, primary_deg, secondary_deg, target, position="HFS", distance=None, name="",
+                    rotation_deg=None) -> "View":
         """XA Positioner Primary (LAO +) and Secondary (CRA +) Angles (deg) of a patient in ``position`` (a
-        Patient Position code, the patient's LPS pose (4, 4) in the table frame, or a patient model)."""
+        Patient Position code, the patient's LPS pose (4, 4) in the table frame, or a patient model);
+        ``rotation_deg``: the detector's rotation about the beam as :func:`carmkin.interop.dicom.xa_angles`
+        reads it (deg), or ``None`` (free roll)."""
         p = real_scalar(primary_deg, "primary_deg", error=ViewError, low=-180.0, high=180.0, unit="deg")
         s = real_scalar(secondary_deg, "secondary_deg", error=ViewError, low=-90.0, high=90.0, unit="deg")
+        rotation = 0.0 if rotation_deg is None else real_scalar(rotation_deg, "rotation_deg", error=ViewError,
+                                                                 low=-180.0, high=180.0, unit="deg")
         target = _point(target, "target")
-        T = dicom.pose_from_xa_angles(p, s, target, 1.0, _patient_frame(position))
-        return cls(tuple(target), tuple(T[:3, 2]), distance, name)
+        T = dicom.pose_from_xa_angles(p, s, target, 1.0, _patient_frame(position), rotation)
+        return cls(tuple(target), tuple(T[:3, 2]), distance, name, None if rotation_deg is None else tuple(T[:3, 0]))
+
+    @classmethod
+    def from_pose(cls, T_source, distance=None, name="", roll: bool = True) -> "View":
+        """The view of a source pose (4, 4, table frame): its beam through the point ``distance`` (m) ahead of
+        the source, at that distance, with its roll (``roll=False``: free)."""
+        try:
+            T = check_rigid_transform(np.asarray(T_source, dtype=float), "T_source")
+        except (CarmkinError, TypeError, ValueError) as exc:
+            raise ViewError(f"T_source must be a rigid 4x4 source pose (m), got {str(exc)[:120]}") from exc
+        d = real_scalar(distance, "distance", error=ViewError, low=DIRECTION_TOLERANCE, high=10.0, unit="m")
+        return cls(tuple(T[:3, 3] + d * T[:3, 2]), tuple(T[:3, 2]), d, name, tuple(T[:3, 0]) if roll else None)
 
     @classmethod
     def from_direction(cls, direction, target, distance=None, name="") -> "View":

@@ -26,6 +26,17 @@ def test_plan_json_and_standard_view(capsys):
     assert data["success"] and data["angles_deg"][1] == pytest.approx(40.0)
 
 
+def test_plan_with_a_rotation_reads_it_back(capsys):
+    assert main(["views", "plan", "--primary-deg", "30", "--secondary-deg", "20", "--rotation-deg", "105",
+                 "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["success"] and data["rotation_deg"] == pytest.approx(105.0, abs=1e-9)
+    # The C-arm's roll is its wigwag's ±10°: 30° is out of reach, and the same beam with its own roll is offered.
+    assert main(["views", "plan", "--primary-deg", "30", "--secondary-deg", "20", "--rotation-deg", "30"]) == 1
+    out = capsys.readouterr().out
+    assert "no wigwag within its range gives this rotation" in out and "0.00° away" in out
+
+
 def test_unreachable_exits_1_with_the_nearest_view(capsys):
     assert main(["views", "plan", "--primary-deg", "-70", "--secondary-deg", "35"]) == 1
     out = capsys.readouterr().out
@@ -37,6 +48,7 @@ def test_unreachable_exits_1_with_the_nearest_view(capsys):
                                   ["plan", "--standard", "nope"],
                                   ["plan", "--standard", "ap", "--primary-deg", "3"],
                                   ["plan", "--primary-deg", "0", "--secondary-deg", "0", "--patient-position", "XX"],
+                                  ["plan", "--primary-deg", "0", "--secondary-deg", "0", "--rotation-deg", "300"],
                                   ["map", "--primary-range-deg", "10,-10"]])
 def test_usage_errors_are_one_line(args):
     result = run(*args)

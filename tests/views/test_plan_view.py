@@ -145,3 +145,102 @@ def test_no_plan_touches_the_patient():
     assert math.isfinite(DEFAULT_MARGIN)
     with pytest.raises(ViewError):
         plan_view(system, "ap", patient, margin=-1.0)
+
+
+@pytest.mark.parametrize("name", ["6-DOF", "non-isocentric", "motorized"])
+def test_views_with_a_fixed_roll_are_planned_with_that_roll(name):
+    """Views of collision-free configurations with their roll kept (``View.from_pose``, free distance): each
+    is planned, and the plan's source x axis is the view's to 1e-9 (closed form)."""
+    system = SYSTEMS[name]
+    patient = ParametricPatient.on_table(system)
+    scene = CollisionScene.from_system(system, patient.obstacles())
+    rng = np.random.default_rng(11)
+    missed = []
+    views = _views_from_configurations(system, patient, 60, rng)
+    for q, free in views:
+        view = View(free.target, free.direction, x_axis=tuple(system.fk(q)[:3, 0]))
+        plan = plan_view(system, view, patient, q_current=q if system.table.joints else None, nearest=False)
+        if not plan.success:
+            missed.append((q, plan.reason))
+            continue
+        T = system.fk(plan.q)
+        assert np.linalg.norm(T[:3, 2] - view.axis) < 1e-9
+        assert np.linalg.norm(T[:3, 0] - np.array(view.x_axis)) < 1e-9
+        w = np.array(view.target) - T[:3, 3]
+        assert np.linalg.norm(w - (w @ T[:3, 2]) * T[:3, 2]) < 1e-9
+        assert validity.check(system, plan.q, margin=DEFAULT_MARGIN, scene=scene).reachable
+    print(f"\n{name}: {len(views) - len(missed)} of {len(views)} views with a fixed roll planned")
+    assert not missed, missed[:3]
+
+
+def test_dicom_round_trip_with_a_detector_rotation():
+    """(primary, secondary, rotation) → plan_view → xa_angles gives all three back; the rotations tried are a
+    few degrees about the one the free plan takes (the wigwag's ±10° is all the roll this C-arm has)."""
+    system = SYSTEMS["6-DOF"]
+    patient = ParametricPatient.on_table(system)
+    planned = 0
+    for p, s in ((0.0, 0.0), (30.0, 20.0), (-25.0, -15.0), (60.0, 10.0)):
+        free = plan_view(system, View.from_angles(p, s, (0.0, 0.0, 0.0), patient), patient, nearest=False)
+        assert free.success
+        r0 = xa_angles(system.fk(free.q), patient.pose())[2]
+        for r in (round(r0) + 3.0, round(r0) - 4.0):
+            plan = plan_view(system, View.from_angles(p, s, (0.0, 0.0, 0.0), patient, rotation_deg=r), patient,
+                             nearest=False)
+            if not plan.success:
+                assert plan.reason
+                continue
+            p2, s2, r2 = xa_angles(system.fk(plan.q), patient.pose())
+            for got, want in ((p2, p), (s2, s), (r2, r)):
+                assert abs((got - want + 180.0) % 360.0 - 180.0) < ANGLE_TOLERANCE_DEG
+            planned += 1
+    assert planned >= 6
+
+
+def test_an_unreachable_roll_names_the_wigwag_and_offers_the_same_beam():
+    """A roll no wigwag value gives (the preset's wigwag spans ±10°): unreachable by the wigwag, and the
+    nearest view is the same beam with its own roll."""
+    system = SYSTEMS["6-DOF"]
+    patient = ParametricPatient.on_table(system)
+    view = View.from_angles(0.0, 0.0, (0.0, 0.0, 0.0), patient, rotation_deg=60.0)
+    plan = plan_view(system, view, patient)
+    assert not plan.success and plan.binding == "wigwag", plan.reason
+    assert plan.nearest is not None and plan.nearest.success and plan.angle == 0.0
+    assert plan.nearest.view.x_axis is None
+
+
+@pytest.mark.parametrize("call", [
+    lambda: View((0, 0, 0), (0, 0, 1), x_axis=(0, 0, 2)),
+    lambda: View((0, 0, 0), (0, 0, 1), x_axis=("1", 0, 0)),
+    lambda: View((0, 0, 0), (0, 0, 1), x_axis=(np.nan, 0, 0)),
+    lambda: View.from_angles(30, 20, (0, 0, 0), rotation_deg=200),
+    lambda: View.from_angles(30, 20, (0, 0, 0), rotation_deg="5"),
+    lambda: View.from_pose(np.eye(3), 0.5),
+    lambda: View.from_pose(np.eye(4), -1.0),
+])
+def test_bad_roll_input_is_a_view_error(call):
+    with pytest.raises(ViewError):
+        call()
+
+
+def test_the_qp_frees_a_motorized_table_where_the_closed_form_holds_it():
+    """Views the closed form (table joints held) leaves unreachable on the motorized table: with ``qp=False``
+    unreachable as the map says; by default the QP tilts/turns the table and a fresh scene and FK confirm."""
+    system = SYSTEMS["motorized"]
+    patient = ParametricPatient.on_table(system)
+    scene = CollisionScene.from_system(system, patient.obstacles())
+    freed = 0
+    for p, s in ((-60.0, 45.0), (40.0, 45.0), (90.0, -45.0), (90.0, -25.0)):
+        view = View.from_angles(p, s, (0.0, 0.0, 0.0), patient)
+        held = plan_view(system, view, patient, nearest=False, qp=False)
+        assert not held.success and held.reason
+        plan = plan_view(system, view, patient, nearest=False)
+        if not plan.success:
+            continue
+        assert plan.solver == "qp"
+        T = system.fk(plan.q)
+        w = np.array(view.target) - T[:3, 3]
+        assert np.linalg.norm(T[:3, 2] - view.axis) < 1e-6 and np.linalg.norm(w - (w @ T[:3, 2]) * T[:3, 2]) < 1e-6
+        assert validity.check(system, plan.q, margin=DEFAULT_MARGIN, scene=scene).reachable
+        assert np.any(system.split(plan.q)[1] != system.split(0.5 * (system.lower + system.upper))[1])
+        freed += 1
+    assert freed >= 2

@@ -128,9 +128,8 @@ def test_the_closed_form_roll_is_the_fk_roll(data, s0):
     target, direction = T[:3, 3] + s0 * T[:3, 2], T[:3, 2]
     world, _ = _world(system)
     ctx = search.make_context(system, world, 0.02, q0, [q0])
-    state = search._State(np.zeros(1, bool), np.full((1, system.nq), np.nan), np.full(1, np.nan), np.zeros(1, int),
-                          np.full(1, -1), np.zeros(1, bool), np.full(1, np.inf), np.zeros(1, bool), Regions(world, 0.02))
-    chunk = search._chunk(ctx, target[None], direction[None], np.array([[0.0, 2.0]]), np.arange(1), state)
+    state = search._State.empty(1, system.nq, Regions(world, 0.02))
+    chunk = search._chunk(ctx, target[None], direction[None], np.array([[0.0, 2.0]]), np.full((1, 3), np.nan), np.arange(1), state)
     cand = search._candidates(ctx, chunk, range(len(search.DISTANCE_CHOICES) + 1))
     assert cand is not None  # q0's own family is feasible
     _, _, _, Q, _, where = cand
