@@ -118,7 +118,7 @@ class PreparedIK:
     @functools.cached_property
     def bounded(self) -> BoundedScene:
         """The broad phase of the scene (:mod:`carmkin.robot.clearance`), built on first use."""
-        return BoundedScene(self.scene)
+        return BoundedScene(self.scene, self.system)
 
     @property
     def system(self):
@@ -164,8 +164,8 @@ class PreparedIK:
     def clearance(self, qs, exact_below: float = np.inf) -> np.ndarray:
         """(N,) smallest signed pair distance (m) of each configuration of ``qs`` (N, nq) in this scene.
 
-        Exact (the coal distance of the nearest pair; broad phase by oriented bounding boxes, coal only for
-        the pairs whose bound decides) wherever it is below ``exact_below``; elsewhere a lower bound that is
+        Exact (the coal distance of the nearest pair; bounds for every pair at once, coal only for the pairs
+        whose bound decides) wherever it is below ``exact_below``; elsewhere a lower bound that is
         itself at least ``exact_below`` (pass the margin to learn "clear of it or not" at the cost of the broad
         phase). See :mod:`carmkin.robot.clearance` for why it is exact.
         """

@@ -1,30 +1,30 @@
-"""Clearance of many configurations at once: a bounding-box broad phase, exact coal distances where they decide.
+"""Clearance of many configurations at once: bounds for every pair, exact coal distances where they decide.
 
-:class:`BoundedScene` wraps a :class:`~carmkin.robot.collision.CollisionScene`. Every geometry gets its
-oriented bounding box (the local AABB of its coal shape, moved with its joint: for the boxes of the C-arm
-model the box itself). For each pair, a **lower bound** of the signed distance is the signed distance
-between the second box and the box, aligned with it, that contains the first one (:meth:`lower_bounds`):
-separated, the distance between two sets is at least that between sets containing them; overlapping, the
-overlap along any unit axis is at least the penetration depth of two convex sets (for convex sets the
-penetration depth is the smallest overlap of their projections over all directions). Hence, less :data:`BOUND_SLACK` for coal's round-off, ``bound <= coal's signed
-distance`` for every pair (tested).
+:class:`BoundedScene` wraps a :class:`~carmkin.robot.collision.CollisionScene` of a system. For every
+configuration and pair it computes a **lower bound** of the pair's signed distance, vectorised over the
+configurations (link poses from the system's closed form, :func:`link_poses`):
 
-Exactness, as used by :meth:`BoundedScene.min_distance` and :meth:`BoundedScene.below`:
+* against a box, capsule or sphere (the table top, the floor, the patient's parts, fixed or carried by a
+  joint): the signed distance from the centre of the first shape's bounding sphere to that shape, less the
+  sphere's radius — separated, the distance to a set is at least that to the ball holding it; overlapping
+  a convex shape, the ball's penetration depth ``r − sd(c)`` bounds the shape's (a 2 m table top's or an
+  8 m floor's own sphere would bound nothing);
+* otherwise sphere to sphere: ``|c1 − c2| − r1 − r2``.
 
-* a pair whose bound is at least the margin cannot be closer than the margin: its coal distance is not
-  computed; every pair whose bound is below the margin gets its exact coal distance, so the set of pairs
-  closer than the margin and their distances are exactly those of computing every pair;
-* the smallest distance is found branch-and-bound: pairs in order of their bound, coal for each until the
-  next bound is no smaller than the smallest distance found. The value is the minimum over all pairs of
-  coal's distance (the same shapes and request as :meth:`CollisionScene.distances`), i.e. exact to coal's
-  GJK/EPA tolerance (1e-6 m): two coal calls on one pair differ by up to that, as their initial guesses do.
+Each bound is lowered by :data:`BOUND_SLACK` for coal's round-off; ``bound <= coal's signed distance`` for
+every pair (tested). Then, per configuration, **branch and bound**: coal computes the pairs in the order of
+their bounds until the next bound is no smaller than the smallest distance found. The value is the minimum
+over all pairs of coal's distance (the same shapes and request as :meth:`CollisionScene.distances`), i.e.
+exact to coal's GJK/EPA tolerance (1e-6 m): two coal calls on one pair differ by up to that, as their
+initial guesses do. Where the smallest bound is already at least ``exact_below``, no coal call is made and
+that bound is returned (enough to tell a configuration clear of a margin).
 
-Lengths in metres, frames in the root (table) frame 0.
+Written here because coal's broad phase answers "which pairs collide", not "the smallest distance of a
+fixed pair list" for many configurations at this cost. Lengths in metres, frames in the root (table) frame 0.
 """
 
 from __future__ import annotations
 
-import coal
 import numpy as np
 import pinocchio as pin
 
@@ -36,140 +36,170 @@ from .collision import CollisionScene
 #: contact a box pair 4e-7 m apart is reported at 0 (found by the tests). Every bound is lowered by twice that
 #: tolerance (m), so that a pruned pair is farther than the margin in coal's own numbers too.
 BOUND_SLACK = 2e-6
+#: Shapes whose signed point distance the bounds compute exactly.
+POINT_DISTANCE_SHAPES = ("Box", "Capsule", "Sphere")
+
+
+def link_poses(system, Q) -> tuple[np.ndarray, np.ndarray]:
+    """DH frames 1..6 (M, 6, 4, 4) and source poses (M, 4, 4) of configurations Q (M, nq): the closed form,
+    with a motorized table's motion ``Tz(d0) E(q_table)`` computed once per distinct table configuration."""
+    if not system.table.joints:
+        return system.dh_frames(Q), system.fk(Q)
+    from carmkin.model import kinematics
+
+    q6, q_table = system.split(Q)
+    distinct, which = np.unique(q_table, axis=0, return_inverse=True)
+    E = np.array([system.table_motion(v) for v in distinct]).reshape(-1, 4, 4)[np.ravel(which)]
+    E[:, 2, 3] += q6[:, 0]
+    q6 = q6.copy()
+    q6[:, 0] = 0.0
+    return E[:, None] @ kinematics.dh_frames(system.dh_table, q6), E @ system.closed_form.poses(q6)
+
+
+def bounding_sphere(obj) -> tuple[np.ndarray, float]:
+    """Centre (in the parent joint's frame) and radius (m) of the sphere about the shape's local AABB."""
+    geometry = obj.geometry
+    geometry.computeLocalAABB()
+    return obj.placement.act(np.asarray(geometry.aabb_center, dtype=float)), float(geometry.aabb_radius)
 
 
 class BoundedScene:
-    """Broad phase (oriented bounding boxes) and exact narrow phase (coal) over the pairs of ``scene``."""
+    """Bounds and exact distances over the pairs of ``scene``, the collision scene of ``system``."""
 
-    def __init__(self, scene: CollisionScene) -> None:
-        self.scene = scene
-        model, objects = scene.model, scene.geometry_model.geometryObjects
-        self.model = model
+    def __init__(self, scene: CollisionScene, system) -> None:
+        self.scene, self.system = scene, system
+        self.model = model = scene.model
         self.data = model.createData()
-        used = sorted({int(i) for p in scene.geometry_model.collisionPairs for i in (p.first, p.second)})
-        slot = {g: k for k, g in enumerate(used)}
-        self.pair_slots = np.array([[slot[p.first], slot[p.second]] for p in scene.geometry_model.collisionPairs],
-                                   dtype=np.intp).reshape(-1, 2)
-        self.geometries = [objects[g].geometry for g in used]
-        self.joints = np.array([objects[g].parentJoint for g in used], dtype=np.intp)
-        self.moving_joints = sorted({int(j) for j in self.joints if j != 0})
-        self._joint_slot = np.array([self.moving_joints.index(j) + 1 if j else 0 for j in self.joints], dtype=np.intp)
-        n = len(used)
-        self.placement_R = np.empty((n, 3, 3))
-        self.box_centre = np.empty((n, 3))  # centre of the bounding box in the parent joint's frame
-        self.half = np.empty((n, 3))
-        for k, g in enumerate(used):
-            geometry = objects[g].geometry
-            geometry.computeLocalAABB()
-            lo, hi = np.array(geometry.aabb_local.min_), np.array(geometry.aabb_local.max_)
-            M = objects[g].placement
-            self.placement_R[k] = M.rotation
-            self.box_centre[k] = M.rotation @ (0.5 * (lo + hi)) + M.translation
-            self.half[k] = 0.5 * np.abs(hi - lo)  # a box given a negative size has its AABB corners swapped
-        self._placements = [objects[g].placement for g in used]
-        self.request = coal.DistanceRequest()
-        self.request.enable_signed_distance = True
-        self._result = coal.DistanceResult()
+        self.geometry_data = pin.GeometryData(scene.geometry_model)  # its own: the scene's stays untouched
+        for request in self.geometry_data.distanceRequests:
+            request.enable_signed_distance = True
+        objects = scene.geometry_model.geometryObjects
+        spheres = [bounding_sphere(o) for o in objects]
+        self.centres = np.array([c for c, _ in spheres]).reshape(-1, 3)  # in the parent joint's frame
+        self.radii = np.array([r for _, r in spheres])
+        self.parent = np.array([o.parentJoint for o in objects], dtype=int)
+        pairs = scene.geometry_model.collisionPairs
+        self.first = np.array([p.first for p in pairs], dtype=int)
+        self.second = np.array([p.second for p in pairs], dtype=int)
+        self.pair_radius = self.radii[self.first] + self.radii[self.second]
+        # Every moving shape rides on a joint that carries one of the DH frames: its centre in that frame.
+        data0 = model.createData()
+        pin.framesForwardKinematics(model, data0, pin.neutral(model))
+        dh = {}
+        for k in range(6):
+            f = model.getFrameId(f"dh_frame_{k + 1}")
+            dh[model.frames[f].parentJoint] = (k, data0.oMf[f])
+        self._moving = np.flatnonzero(self.parent != 0)
+        self._frame_of_moving = np.array([dh[j][0] for j in self.parent[self._moving].tolist()], dtype=int)
+        self._moving_local = np.array([dh[j][1].actInv(data0.oMi[j].act(self.centres[g])) for g, j in
+                                       zip(self._moving.tolist(), self.parent[self._moving].tolist())]).reshape(-1, 3)
+        # Pairs whose second shape gets the point-distance bound: its pose in its DH frame (or the table frame).
+        plain = np.ones(len(self.first), dtype=bool)
+        exact, poses, frames, shapes = [], [], [], []
+        for g in np.unique(self.second).tolist():
+            o, j = objects[g], int(self.parent[g])
+            kind = type(o.geometry).__name__
+            if kind not in POINT_DISTANCE_SHAPES:
+                continue
+            ks = np.flatnonzero(self.second == g)
+            plain[ks] = False
+            pose, frame = o.placement, -1
+            if j:
+                frame, dh_pose = dh[j]
+                pose = dh_pose.actInv(data0.oMi[j] * o.placement)
+            half = np.asarray(o.geometry.halfSide, dtype=float) if kind == "Box" else np.zeros(3)
+            segment = (o.geometry.halfLength if kind == "Capsule" else 0.0, 0.0 if kind == "Box" else o.geometry.radius)
+            exact += ks.tolist()
+            poses += [(pose.rotation.copy(), pose.translation.copy())] * len(ks)
+            frames += [frame] * len(ks)
+            shapes += [(kind == "Box", half, segment)] * len(ks)
+        self._plain = np.flatnonzero(plain)
+        self._exact = np.array(exact, dtype=int)
+        self._exact_R = np.array([R for R, _ in poses]).reshape(-1, 3, 3)
+        self._exact_t = np.array([t for _, t in poses]).reshape(-1, 3)
+        self._exact_frame = np.array(frames, dtype=int)
+        self._exact_box = np.array([box for box, _, _ in shapes], dtype=bool)
+        self._exact_half = np.array([h for _, h, _ in shapes]).reshape(-1, 3)
+        self._exact_segment = np.array([seg for _, _, seg in shapes]).reshape(-1, 2)
 
     def __len__(self) -> int:
-        return len(self.pair_slots)
+        return len(self.first)
 
-    # --- kinematics -----------------------------------------------------------------------------------------
-    def joint_frames(self, qs: np.ndarray, data: pin.Data | None = None) -> np.ndarray:
-        """(N, 1 + J, 4, 4) poses of the universe and of the joints that carry pair geometries, for qs (N, nq)
-        (one Pinocchio forward-kinematics pass each; ``data`` is reused when given)."""
-        data = data if data is not None else self.data
-        out = np.empty((len(qs), 1 + len(self.moving_joints), 4, 4))
-        out[:, 0] = np.eye(4)
-        joints = self.moving_joints
-        for i, q in enumerate(qs):
-            pin.forwardKinematics(self.model, data, q)
-            oMi = data.oMi
-            for k, j in enumerate(joints, 1):
-                out[i, k] = oMi[j].homogeneous
-        return out
+    # --- bounds ----------------------------------------------------------------------------------------------
+    def lower_bounds(self, qs) -> np.ndarray:
+        """(N, P): a lower bound of every pair's signed distance (m) for configurations ``qs`` (N, nq) (see the
+        module docstring), vectorised."""
+        return self._bounds(self._configurations(qs))
 
-    def boxes(self, frames: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """World centres (N, G, 3) and axes (N, G, 3, 3) (columns) of the geometries' bounding boxes."""
-        F = frames[:, self._joint_slot]  # (N, G, 4, 4)
-        R = F[..., :3, :3]
-        centres = (R @ self.box_centre[..., None])[..., 0] + F[..., :3, 3]
-        return centres, R @ self.placement_R
+    def _bounds(self, qs: np.ndarray) -> np.ndarray:
+        frames, _ = link_poses(self.system, qs)  # (N, 6, 4, 4)
+        # Components as (3, N, G) arrays: numpy is slow on a last axis of length 3.
+        F = frames[:, self._frame_of_moving]
+        c = self._moving_local
+        world = np.empty((3, len(qs), len(self.centres)))
+        world[:] = self.centres.T[:, None, :]
+        for i in range(3):
+            world[i][:, self._moving] = F[..., i, 0] * c[:, 0] + F[..., i, 1] * c[:, 1] + F[..., i, 2] * c[:, 2] + F[..., i, 3]
+        bound = np.empty((len(qs), len(self.first)))
+        k = self._plain
+        gap = world[:, :, self.first[k]] - world[:, :, self.second[k]]
+        bound[:, k] = np.sqrt(gap[0] ** 2 + gap[1] ** 2 + gap[2] ** 2) - self.pair_radius[k]
+        if len(self._exact):
+            first = self.first[self._exact]
+            p = world[:, :, first]  # (3, N, E): the first shapes' centres
+            for f in np.unique(self._exact_frame[self._exact_frame >= 0]).tolist():  # second shapes on a joint
+                e = np.flatnonzero(self._exact_frame == f)
+                T = frames[:, f]
+                d = [p[j][:, e] - T[:, j, 3, None] for j in range(3)]
+                for i in range(3):  # into DH frame f: Rᵀ (p − t)
+                    p[i][:, e] = T[:, 0, i, None] * d[0] + T[:, 1, i, None] * d[1] + T[:, 2, i, None] * d[2]
+            R, t = self._exact_R, self._exact_t
+            d = [p[j] - t[:, j] for j in range(3)]
+            x, y, z = (R[:, 0, i] * d[0] + R[:, 1, i] * d[1] + R[:, 2, i] * d[2] for i in range(3))
+            hx, hy, hz = self._exact_half.T
+            qx, qy, qz = np.abs(x) - hx, np.abs(y) - hy, np.abs(z) - hz
+            d_box = np.sqrt(np.maximum(qx, 0.0) ** 2 + np.maximum(qy, 0.0) ** 2 + np.maximum(qz, 0.0) ** 2) \
+                + np.minimum(np.maximum(np.maximum(qx, qy), qz), 0.0)
+            half, radius = self._exact_segment.T
+            z = z - np.clip(z, -half, half)
+            d_segment = np.sqrt(x * x + y * y + z * z) - radius
+            bound[:, self._exact] = np.where(self._exact_box, d_box, d_segment) - self.radii[first]
+        return bound - BOUND_SLACK
 
-    # --- bounds and exact distances -----------------------------------------------------------------------
-    def lower_bounds(self, centres: np.ndarray, axes: np.ndarray) -> np.ndarray:
-        """(N, P): a lower bound of every pair's signed distance (see the module docstring).
-
-        The first box of a pair, seen in the second box's frame, lies in the axis-aligned box of half extents
-        ``|R_bᵀ R_a| h_a`` about its centre; the bound is the signed distance between that box and the
-        second box (exact for axis-aligned boxes: the Euclidean norm of the separations along the second
-        box's axes, or the largest (negative) overlap when they overlap on every axis).
-        """
-        a, b = self.pair_slots[:, 0], self.pair_slots[:, 1]
-        RbT = np.swapaxes(axes[:, b], -1, -2)  # (N, P, 3, 3)
-        local = (RbT @ (centres[:, a] - centres[:, b])[..., None])[..., 0]  # centre of a in b's frame
-        extent = (np.abs(RbT @ axes[:, a]) @ self.half[a][..., None])[..., 0]
-        gap = np.abs(local) - extent - self.half[b]  # (N, P, 3)
-        outside = np.maximum(gap, 0.0)
-        apart = np.sqrt((outside * outside).sum(axis=-1))
-        return np.where(apart > 0.0, apart, gap.max(axis=-1)) - BOUND_SLACK
-
-    def _transform(self, frames_i: np.ndarray, slot: int) -> coal.Transform3s:
-        M = frames_i[self._joint_slot[slot]]
-        placement = self._placements[slot]
-        R = M[:3, :3] @ placement.rotation
-        return coal.Transform3s(R, M[:3, :3] @ placement.translation + M[:3, 3])
-
-    def exact(self, frames_i: np.ndarray, pair: int) -> float:
-        """Coal's signed distance (m) of ``pair`` in the configuration of ``frames_i`` (1 + J, 4, 4)."""
-        a, b = self.pair_slots[pair]
-        result = self._result
-        result.clear()
-        coal.distance(self.geometries[a], self._transform(frames_i, a), self.geometries[b],
-                      self._transform(frames_i, b), self.request, result)
-        return float(result.min_distance)
-
-    def _min(self, frames_i: np.ndarray, bounds_i: np.ndarray, stop: float, best: float = np.inf) -> float:
-        """Branch and bound from the distance ``best`` already known: the exact smallest distance when it is
-        below ``stop``, else the smallest bound."""
-        for pair in np.argsort(bounds_i).tolist():
-            bound = bounds_i[pair]
-            if bound >= best:
-                break  # every remaining pair is at least as far: best is exact
-            if bound >= stop:
-                return min(best, float(bound))  # a lower bound, at least stop (or the exact best below it)
-            best = min(best, self.exact(frames_i, pair))
-        return best
+    # --- exact distances -------------------------------------------------------------------------------------
+    def nearest(self, qs, exact_below: float = np.inf, stop_below: float = -np.inf) -> tuple[np.ndarray, np.ndarray]:
+        """``(distance (N,), pair (N,))`` for configurations ``qs`` (N, nq): the smallest signed distance over
+        the pairs (m) and its pair, exact wherever it is below ``exact_below`` (elsewhere the smallest bound,
+        itself at least ``exact_below``, and pair −1); with ``stop_below``, the first pair found closer than it
+        ends a configuration's search (a distance below it, not the smallest). ``inf`` without pairs."""
+        qs = self._configurations(qs)
+        out, which = np.full(len(qs), np.inf), np.full(len(qs), -1)
+        if not len(self) or not len(qs):
+            return out, which
+        bound = self._bounds(qs)
+        order = np.argsort(bound, axis=1)
+        bound = np.take_along_axis(bound, order, axis=1)
+        out[:] = bound[:, 0]
+        model, data = self.model, self.data
+        gm, gd = self.scene.geometry_model, self.geometry_data
+        for i in np.flatnonzero(bound[:, 0] < exact_below).tolist():
+            pin.forwardKinematics(model, data, qs[i])
+            pin.updateGeometryPlacements(model, data, gm, gd)
+            best, pair = np.inf, -1
+            for b, k in zip(bound[i].tolist(), order[i].tolist()):
+                if b >= best:
+                    break  # every remaining pair is at least as far: best is exact
+                d = pin.computeDistance(gm, gd, k).min_distance
+                if d < best:
+                    best, pair = d, k
+                    if best < stop_below:
+                        break
+            out[i], which[i] = best, pair
+        return out, which
 
     def min_distance(self, qs, exact_below: float = np.inf) -> np.ndarray:
-        """(N,) the smallest signed distance over the pairs (m) of each configuration of ``qs`` (N, nq).
-
-        Exact (coal, branch and bound) wherever it is below ``exact_below``; where it is not, the value is a
-        lower bound that is itself at least ``exact_below`` — enough to tell a configuration clear of a margin
-        at the cost of the broad phase alone. ``inf`` for a scene without pairs.
-        """
-        qs = self._configurations(qs)
-        frames = self.joint_frames(qs)
-        if not len(self):
-            return np.full(len(qs), np.inf)
-        bounds = self.lower_bounds(*self.boxes(frames))
-        out = bounds.min(axis=1)
-        for i in np.flatnonzero(out < exact_below).tolist():
-            out[i] = self._min(frames[i], bounds[i], exact_below)
-        return out
-
-    def below(self, frames_i: np.ndarray, bounds_i: np.ndarray, margin: float) -> tuple[np.ndarray, np.ndarray, float]:
-        """For one configuration: ``(pairs, distances, min_distance)`` — the pairs closer than ``margin`` with
-        their exact distances, and the exact smallest distance over all pairs (``inf`` without pairs)."""
-        near = np.flatnonzero(bounds_i < margin)
-        distances = np.array([self.exact(frames_i, k) for k in near.tolist()])
-        close = distances < margin
-        best = float(distances.min()) if len(distances) else np.inf
-        if len(bounds_i) and not best < margin:  # nothing decided yet below the margin: branch and bound the rest
-            rest = bounds_i.copy()
-            rest[near] = np.inf
-            best = self._min(frames_i, rest, np.inf, best)
-        return near[close], distances[close], best
+        """(N,) the distances of :meth:`nearest`."""
+        return self.nearest(qs, exact_below)[0]
 
     def _configurations(self, qs) -> np.ndarray:
         qs = np.asarray(qs, dtype=float)

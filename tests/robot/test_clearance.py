@@ -41,23 +41,27 @@ def check_scene(system, seed: int, n: int = 40, property_based: bool = True):
     rng = np.random.default_rng(seed)
     scene = CollisionScene.from_system(system, obstacles(rng))
     assert not degenerate(scene)
-    bounded = BoundedScene(scene)
+    bounded = BoundedScene(scene, system)
     qs = random_configurations(rng, system, n, beyond=0.0)
     full = np.array([scene.distances(q=q) for q in qs])
-    frames = bounded.joint_frames(qs)
-    bounds = bounded.lower_bounds(*bounded.boxes(frames))
+    bounds = bounded.lower_bounds(qs)
     assert np.all(bounds <= full), "a bound above coal's distance"
-    np.testing.assert_allclose(bounded.min_distance(qs), full.min(axis=1), rtol=0, atol=SAME_DISTANCE)
+    distance, pair = bounded.nearest(qs)
+    np.testing.assert_allclose(distance, full.min(axis=1), rtol=0, atol=SAME_DISTANCE)
+    np.testing.assert_allclose(full[np.arange(n), pair], full.min(axis=1), rtol=0, atol=SAME_DISTANCE)
+    np.testing.assert_allclose(bounded.min_distance(qs), distance, rtol=0, atol=SAME_DISTANCE)
     margin = float(rng.uniform(0.0, 0.1))
     cheap = bounded.min_distance(qs, exact_below=margin)
     below = full.min(axis=1) < margin
     np.testing.assert_allclose(cheap[below], full.min(axis=1)[below], rtol=0, atol=SAME_DISTANCE)
-    assert np.all(cheap[~below] >= margin) and np.all(cheap[~below] <= full.min(axis=1)[~below] + SAME_DISTANCE)
-    for i in range(n):
-        pairs, distances, smallest = bounded.below(frames[i], bounds[i], margin)
-        assert set(pairs.tolist()) == set(np.flatnonzero(full[i] < margin).tolist())
-        np.testing.assert_allclose(distances, full[i][pairs], rtol=0, atol=SAME_DISTANCE)
-        assert abs(smallest - full[i].min()) <= SAME_DISTANCE
+    assert np.all(cheap[~below] >= margin - SAME_DISTANCE)
+    assert np.all(cheap[~below] <= full.min(axis=1)[~below] + SAME_DISTANCE)
+    # With a stop: a distance below it is its pair's own; one above it is the smallest.
+    stopped, stop_pair = bounded.nearest(qs, stop_below=margin)
+    hit = stopped < margin
+    np.testing.assert_allclose(stopped[hit], full[hit, stop_pair[hit]], rtol=0, atol=SAME_DISTANCE)
+    np.testing.assert_allclose(stopped[~hit], full[~hit].min(axis=1), rtol=0, atol=SAME_DISTANCE)
+    assert np.array_equal(hit, below | (stopped < margin))
 
 
 @settings(max_examples=10)
@@ -77,7 +81,9 @@ def test_motorized_preset():
 
 
 def test_bad_configurations_are_refused():
-    bounded = BoundedScene(CollisionScene.from_system(carmkin.load_preset("siremobile-iso-c3d")))
+    system = carmkin.load_preset("siremobile-iso-c3d")
+    bounded = BoundedScene(CollisionScene.from_system(system), system)
     for bad in (np.zeros(5), np.full((2, 6), np.nan), np.zeros((2, 2, 6))):
-        with pytest.raises(InvalidConfigurationError, match="qs"):
-            bounded.min_distance(bad)
+        for call in (bounded.min_distance, bounded.nearest, bounded.lower_bounds):
+            with pytest.raises(InvalidConfigurationError, match="qs"):
+                call(bad)

@@ -33,24 +33,34 @@ def _views_from_configurations(system, patient, count, rng):
     return out
 
 
+@pytest.mark.parametrize("roll", [False, True], ids=["free roll", "fixed roll"])
 @pytest.mark.parametrize("name", ["6-DOF", "non-isocentric", "motorized"])
-def test_every_view_of_a_collision_free_configuration_is_planned(name):
+def test_every_view_of_a_collision_free_configuration_is_planned(name, roll):
+    """Views of collision-free configurations (free distance; with ``roll``, the configuration's source x
+    axis kept): each is planned, the beam along the view (and the x axis the view's) to 1e-9 (closed form)."""
     system = SYSTEMS[name]
     patient = ParametricPatient.on_table(system)
-    rng = np.random.default_rng(7)
+    rng = np.random.default_rng(11 if roll else 7)
     scene = CollisionScene.from_system(system, patient.obstacles())
     missed = []
-    views = _views_from_configurations(system, patient, 170, rng)
+    views = _views_from_configurations(system, patient, 60 if roll else 170, rng)
     for q, view in views:
+        if roll:
+            view = View(view.target, view.direction, x_axis=tuple(system.fk(q)[:3, 0]))
         # The motorized table stays where it is (its joints are held at q_current's); the C-arm moves.
         plan = plan_view(system, view, patient, q_current=q if system.table.joints else None, nearest=False)
         if not plan.success:
             missed.append((q, plan.reason))
             continue
         T = system.fk(plan.q)
+        w = np.array(view.target) - T[:3, 3]
         assert np.linalg.norm(T[:3, 2] - view.axis) < 1e-9
+        assert np.linalg.norm(w - (w @ T[:3, 2]) * T[:3, 2]) < 1e-9
+        if roll:
+            assert np.linalg.norm(T[:3, 0] - np.array(view.x_axis)) < 1e-9
         assert validity.check(system, plan.q, margin=DEFAULT_MARGIN, scene=scene).reachable
-    print(f"\n{name}: {len(views) - len(missed)} of {len(views)} views of collision-free configurations planned")
+    print(f"\n{name}: {len(views) - len(missed)} of {len(views)} views of collision-free configurations planned"
+          + (" with their roll" if roll else ""))
     assert not missed, missed[:3]
 
 
@@ -145,32 +155,6 @@ def test_no_plan_touches_the_patient():
     assert math.isfinite(DEFAULT_MARGIN)
     with pytest.raises(ViewError):
         plan_view(system, "ap", patient, margin=-1.0)
-
-
-@pytest.mark.parametrize("name", ["6-DOF", "non-isocentric", "motorized"])
-def test_views_with_a_fixed_roll_are_planned_with_that_roll(name):
-    """Views of collision-free configurations with their roll kept (``View.from_pose``, free distance): each
-    is planned, and the plan's source x axis is the view's to 1e-9 (closed form)."""
-    system = SYSTEMS[name]
-    patient = ParametricPatient.on_table(system)
-    scene = CollisionScene.from_system(system, patient.obstacles())
-    rng = np.random.default_rng(11)
-    missed = []
-    views = _views_from_configurations(system, patient, 60, rng)
-    for q, free in views:
-        view = View(free.target, free.direction, x_axis=tuple(system.fk(q)[:3, 0]))
-        plan = plan_view(system, view, patient, q_current=q if system.table.joints else None, nearest=False)
-        if not plan.success:
-            missed.append((q, plan.reason))
-            continue
-        T = system.fk(plan.q)
-        assert np.linalg.norm(T[:3, 2] - view.axis) < 1e-9
-        assert np.linalg.norm(T[:3, 0] - np.array(view.x_axis)) < 1e-9
-        w = np.array(view.target) - T[:3, 3]
-        assert np.linalg.norm(w - (w @ T[:3, 2]) * T[:3, 2]) < 1e-9
-        assert validity.check(system, plan.q, margin=DEFAULT_MARGIN, scene=scene).reachable
-    print(f"\n{name}: {len(views) - len(missed)} of {len(views)} views with a fixed roll planned")
-    assert not missed, missed[:3]
 
 
 def test_dicom_round_trip_with_a_detector_rotation():
