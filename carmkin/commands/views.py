@@ -63,6 +63,8 @@ def register(parser: argparse.ArgumentParser) -> None:
     cmap.add_argument("--primary-range-deg", metavar="LO,HI", default="-90,90", help="primary angles (deg)")
     cmap.add_argument("--secondary-range-deg", metavar="LO,HI", default="-45,45", help="secondary angles (deg)")
     cmap.add_argument("--step-deg", type=common.number(0.1, 90.0, unit="deg"), default=5.0, help="grid step (deg, default 5)")
+    cmap.add_argument("--workers", type=common.integer(1, 256), default=None,
+                      help="processes for a map of 2048 cells or more (default: the usable cores)")
     cmap.add_argument("--plot", metavar="FILE", help="write the map as a figure (png, pdf, svg, ...)")
     cmap.add_argument("--html", metavar="FILE", help="write a static page: the sphere of views coloured by clearance")
     cmap.add_argument("--json", metavar="FILE", help="write the cells as JSON")
@@ -181,7 +183,7 @@ def _map(args: argparse.Namespace) -> int:
                                ("json", args.json and common.output_path(args.json, "--json", ("json",)))) if v}
     patient = _patient(system, args)
     m = reach_map(system, target, primary, secondary, patient, position=patient or args.patient_position,
-                  margin=args.margin_mm / MM)
+                  margin=args.margin_mm / MM, workers=args.workers)
     print(f"preset {system.name}: {int(m.reachable.sum())} of {m.reachable.size} views reachable "
           f"({100 * m.fraction:.1f} %), primary {primary[0]:g}..{primary[-1]:g}°, secondary "
           f"{secondary[0]:g}..{secondary[-1]:g}° at {args.step_deg:g}°")

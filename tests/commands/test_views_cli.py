@@ -49,6 +49,7 @@ def test_unreachable_exits_1_with_the_nearest_view(capsys):
                                   ["plan", "--standard", "ap", "--primary-deg", "3"],
                                   ["plan", "--primary-deg", "0", "--secondary-deg", "0", "--patient-position", "XX"],
                                   ["plan", "--primary-deg", "0", "--secondary-deg", "0", "--rotation-deg", "300"],
+                                  ["map", "--workers", "0"],
                                   ["map", "--primary-range-deg", "10,-10"]])
 def test_usage_errors_are_one_line(args):
     result = run(*args)
