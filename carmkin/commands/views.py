@@ -65,6 +65,9 @@ def register(parser: argparse.ArgumentParser) -> None:
     cmap.add_argument("--step-deg", type=common.number(0.1, 90.0, unit="deg"), default=5.0, help="grid step (deg, default 5)")
     cmap.add_argument("--workers", type=common.integer(1, 256), default=None,
                       help="processes for a map of 2048 cells or more (default: the usable cores)")
+    cmap.add_argument("--compare", action="store_true",
+                      help="side by side: the C-arm alone, with the table translation, and with the motorized "
+                           "preset's table joints (each at its limits, one at a time)")
     cmap.add_argument("--plot", metavar="FILE", help="write the map as a figure (png, pdf, svg, ...)")
     cmap.add_argument("--html", metavar="FILE", help="write a static page: the sphere of views coloured by clearance")
     cmap.add_argument("--json", metavar="FILE", help="write the cells as JSON")
@@ -182,6 +185,8 @@ def _map(args: argparse.Namespace) -> int:
                                ("html", args.html and common.output_path(args.html, "--html", ("html",))),
                                ("json", args.json and common.output_path(args.json, "--json", ("json",)))) if v}
     patient = _patient(system, args)
+    if args.compare:
+        return _compare(args, system, target, primary, secondary, patient, paths)
     m = reach_map(system, target, primary, secondary, patient, position=patient or args.patient_position,
                   margin=args.margin_mm / MM, workers=args.workers)
     print(f"preset {system.name}: {int(m.reachable.sum())} of {m.reachable.size} views reachable "
@@ -211,4 +216,28 @@ def _map(args: argparse.Namespace) -> int:
                  for i, p in enumerate(m.primary_deg) for j, s in enumerate(m.secondary_deg)]
         paths["json"].write_text(json.dumps({"target_mm": list(target * MM), "cells": cells}), encoding="utf-8")
         print(f"wrote {paths['json']}")
+    return 0
+
+
+def _compare(args, system, target, primary, secondary, patient, paths) -> int:
+    import carmkin
+    from carmkin.views.compare import compare_figure, compare_maps
+
+    if system.table.joints:
+        raise common.UsageError("--compare: give a 6-joint system (the third map adds the motorized preset's table "
+                                "joints to it)")
+    if "html" in paths or "json" in paths:
+        raise common.UsageError("--compare writes --plot only")
+    import dataclasses
+
+    # This C-arm on the motorized preset's table joints.
+    joints = carmkin.load_preset("siremobile-iso-c3d-motorized-table").table.joints
+    motorized = system.replace(table=dataclasses.replace(system.table, joints=joints))
+    maps = compare_maps(system, target, primary, secondary, patient, motorized=motorized,
+                        position=patient or args.patient_position, margin=args.margin_mm / MM, workers=args.workers)
+    for label, m in maps.items():
+        print(f"{label}: {int(m.reachable.sum())} of {m.reachable.size} views reachable ({100 * m.fraction:.1f} %)")
+    if "plot" in paths:
+        compare_figure(maps).savefig(paths["plot"])
+        print(f"wrote {paths['plot']}")
     return 0

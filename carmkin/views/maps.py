@@ -18,7 +18,7 @@ from carmkin.errors import ViewError
 from carmkin.validation import integer, real_array, real_scalar
 
 from . import search
-from .plan import DEFAULT_MARGIN, beam_directions, reference, world_for
+from .plan import DEFAULT_MARGIN, _table_samples, beam_directions, reference, world_for
 from .view import _patient_frame, _point
 
 
@@ -60,8 +60,10 @@ def reach_map(system, target, primary_deg=np.arange(-90, 91), secondary_deg=np.a
               position=None, margin: float = DEFAULT_MARGIN, table_samples=None, workers: int | None = None) -> ReachMap:
     """The map of ``target`` (3,) m (table frame) over ``primary_deg`` × ``secondary_deg`` (XA angles, deg,
     LAO +, CRA +) for a patient (model or list of Obstacle) in ``position`` (a Patient Position code or
-    pose; default the patient model's, else HFS). ``workers``: processes for a large map (default: the
-    cores this process may use); every cell's answer is the same for any number."""
+    pose; default the patient model's, else HFS). ``table_samples``: configurations (k, nq) whose table joints
+    a motorized table takes (default: mid-range; :func:`carmkin.views.compare.table_samples`).
+    ``workers``: processes for a large map (default: the cores this process may use); every cell's answer is
+    the same for any number."""
     target = _point(target, "target")
     p = _angles(primary_deg, "primary_deg", -180.0, 180.0)
     s = _angles(secondary_deg, "secondary_deg", -90.0, 90.0)
@@ -72,7 +74,7 @@ def reach_map(system, target, primary_deg=np.arange(-90, 91), secondary_deg=np.a
     directions = beam_directions(R, P.ravel(), S.ravel())
     world = world_for(system, patient)
     margin = real_scalar(margin, "margin", error=ViewError, low=0.0, high=1.0, unit="m")
-    ctx = search.make_context(system, world, margin, reference(system, None), table_samples)
+    ctx = search.make_context(system, world, margin, reference(system, None), _table_samples(system, table_samples))
     n = len(directions)
     ranges = np.tile([0.0, system.carm.source_to_detector], (n, 1))
     out = search.solve_cells(ctx, np.tile(target, (n, 1)), directions, ranges, workers=_workers(workers))

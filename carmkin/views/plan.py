@@ -143,6 +143,24 @@ def reference(system, q_current) -> np.ndarray:
                       unit="m, rad")
 
 
+def _table_samples(system, value) -> list | None:
+    """``value`` as held configurations: None, or (k, nq) finite and within the joint ranges (m, rad)."""
+    if value is None:
+        return None
+    from carmkin.validation import JOINT_VALUE_LIMIT
+
+    samples = real_array(value, "table_samples", (None, system.nq), error=ViewError, limit=JOINT_VALUE_LIMIT,
+                         unit="m, rad")
+    if not len(samples):
+        raise ViewError(f"table_samples must hold at least one configuration ({system.nq},), got none")
+    for k, r in enumerate(system.joint_ranges):
+        outside = [float(v) for v in samples[:, k] if not r.contains(v)]
+        if outside:
+            raise ViewError(f"table_samples: {r.name} = {outside[0]:g} is outside its range [{r.lower:g}, {r.upper:g}] "
+                            "(m or rad)")
+    return list(samples)
+
+
 def distance_range(system, view: View) -> np.ndarray:
     """(1, 2) source–target distances (m): the view's, or the target anywhere between source and detector."""
     if view.distance is not None:
@@ -173,7 +191,7 @@ def plan_view(system, view, patient=None, q_current=None, *, margin: float = DEF
     margin = real_scalar(margin, "margin", error=ViewError, low=0.0, high=1.0, unit="m")
     world = world_for(system, patient)
     q_ref = reference(system, q_current)
-    ctx = search.make_context(system, world, margin, q_ref, table_samples)
+    ctx = search.make_context(system, world, margin, q_ref, _table_samples(system, table_samples))
     plan = _plan_cells(ctx, [view])[0]
     if not plan.success and qp and view.x_axis is None and refine.frees_joints(system):
         found = refine.refine(ctx, np.array(view.target), view.axis, distance_range(system, view)[0])

@@ -65,3 +65,13 @@ def test_map_writes_json_plot_and_page(tmp_path, capsys):
     assert "views reachable" in out
     cells = json.loads(paths[0].read_text())["cells"]
     assert len(cells) == 7 * 4 and all(p.exists() and p.stat().st_size for p in paths)
+
+
+def test_map_compare_prints_three_maps_and_plots(tmp_path, capsys):
+    plot = tmp_path / "compare.png"
+    assert main(["views", "map", "--compare", "--step-deg", "30", "--plot", str(plot)]) == 0
+    lines = [line for line in capsys.readouterr().out.splitlines() if "views reachable" in line]
+    assert [line.split(":")[0] for line in lines] == ["C-arm alone (5 DOF)", "+ table translation (6 DOF)",
+                                                       "+ motorized table (11 DOF, 11 table poses)"]
+    assert plot.stat().st_size
+    assert run("map", "--compare", "--html", str(tmp_path / "x.html")).returncode == 2
