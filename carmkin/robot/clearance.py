@@ -139,7 +139,8 @@ class BoundedScene:
         world = np.empty((3, len(qs), len(self.centres)))
         world[:] = self.centres.T[:, None, :]
         for i in range(3):
-            world[i][:, self._moving] = F[..., i, 0] * c[:, 0] + F[..., i, 1] * c[:, 1] + F[..., i, 2] * c[:, 2] + F[..., i, 3]
+            world[i][:, self._moving] = (F[..., i, 0] * c[:, 0] + F[..., i, 1] * c[:, 1] + F[..., i, 2] * c[:, 2]
+                                         + F[..., i, 3])
         bound = np.empty((len(qs), len(self.first)))
         k = self._plain
         gap = world[:, :, self.first[k]] - world[:, :, self.second[k]]

@@ -27,7 +27,8 @@ class ReachMap:
     """``primary_deg`` (P,), ``secondary_deg`` (S,); per cell ``reachable`` (P, S), ``q`` (P, S, nq) (NaN
     where unreachable), ``clearance`` (P, S) exact (m), ``distance`` (P, S) source–target (m), ``binding``
     (P, S) the constraint that binds an unreachable cell (a joint group or ``"contact"``), ``reason`` (P, S)
-    its sentence; ``directions`` (P, S, 3) the beams (table frame), ``target`` (3,) m."""
+    its sentence; ``directions`` (P, S, 3) the beams (table frame), ``target`` (3,) m; ``rank`` (P, S) the
+    answer's position in its cell's search order (0: the first candidate; −1: unreachable)."""
 
     primary_deg: np.ndarray
     secondary_deg: np.ndarray
@@ -39,6 +40,7 @@ class ReachMap:
     distance: np.ndarray
     binding: np.ndarray
     reason: np.ndarray
+    rank: np.ndarray
 
     @property
     def fraction(self) -> float:
@@ -81,7 +83,7 @@ def reach_map(system, target, primary_deg=np.arange(-90, 91), secondary_deg=np.a
     shape = (len(p), len(s))
     return ReachMap(p, s, target, directions.reshape(shape + (3,)), out.reachable.reshape(shape),
                     out.q.reshape(shape + (system.nq,)), out.clearance.reshape(shape), out.distance.reshape(shape),
-                    out.binding.reshape(shape), out.reason.reshape(shape))
+                    out.binding.reshape(shape), out.reason.reshape(shape), out.rank.reshape(shape))
 
 
 def _workers(value) -> int:

@@ -110,11 +110,11 @@ def _candidates(ctx: Context, chunk, kinds):
     """Candidates of the families of ``chunk``, one per family and distance choice ``kind`` in ``kinds``:
     arrays (chunk cell, score, motion, q, kind, (distance, roll)); None without any."""
     system, world = ctx.system, ctx.world
-    targets, directions, s_grid, grid_score, fams = chunk.targets, chunk.directions, chunk.s_grid, chunk.grid_score, chunk.families
+    targets, directions, s_grid, grid_score = chunk.targets, chunk.directions, chunk.s_grid, chunk.grid_score
     span = np.maximum(system.upper - system.lower, 1e-9)
     out = []
     e1, e2 = _roll_basis(directions)
-    for hold, fam, idx in fams:
+    for hold, fam, idx in chunk.families:
         n = idx[0]
         base, slope = fam.base[idx][:, 0], fam.slope[idx][:, 0]
         s0, s1 = base + slope * fam.lo[idx], base + slope * fam.hi[idx]
@@ -193,8 +193,8 @@ class _Chunk:
             rows = np.arange(len(lo))
             grid = lo[rows, None] + (hi - lo)[rows, None] * np.linspace(0, 1, FINE_DISTANCE_SAMPLES)
             d = np.repeat(self.directions[rows], FINE_DISTANCE_SAMPLES, axis=0)
-            self.fine[rows] = world.beam_bound((self.targets[rows, None, :] - grid[..., None] * self.directions[rows, None, :])
-                                               .reshape(-1, 3), d).reshape(len(rows), FINE_DISTANCE_SAMPLES)
+            sources = self.targets[rows, None, :] - grid[..., None] * self.directions[rows, None, :]
+            self.fine[rows] = world.beam_bound(sources.reshape(-1, 3), d).reshape(len(rows), FINE_DISTANCE_SAMPLES)
         step = (hi - lo)[n] / (FINE_DISTANCE_SAMPLES - 1)
         with np.errstate(divide="ignore", invalid="ignore"):
             u = np.where(step > 0, (s - lo[n]) / step, 0.0)
@@ -235,7 +235,8 @@ def _chunk(ctx: Context, targets, directions, distance_range, x_axes, index, sta
     x_axes = x_axes[index]
     fixed = np.all(np.isfinite(x_axes), axis=1)
     N = len(index)
-    s_grid = distance_range[:, :1] + (distance_range[:, 1:] - distance_range[:, :1]) * np.linspace(0, 1, DISTANCE_SAMPLES)
+    lo, hi = distance_range[:, :1], distance_range[:, 1:]
+    s_grid = lo + (hi - lo) * np.linspace(0, 1, DISTANCE_SAMPLES)
     sources = targets[:, None, :] - s_grid[..., None] * directions[:, None, :]
     grid_score = world.beam_bound(sources.reshape(-1, 3), np.repeat(directions, DISTANCE_SAMPLES, axis=0))
     chunk = _Chunk(targets, directions, s_grid, grid_score.reshape(N, DISTANCE_SAMPLES), [], distance_range, index)

@@ -2,6 +2,8 @@
 collision scene's full computation, the certified contact regions against coal at the configurations they
 skip, the closed-form roll against the FK, and the worker processes against one process."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -128,8 +130,10 @@ def test_the_closed_form_roll_is_the_fk_roll(data, s0):
     target, direction = T[:3, 3] + s0 * T[:3, 2], T[:3, 2]
     world, _ = _world(system)
     ctx = search.make_context(system, world, 0.02, q0, [q0])
+    ctx = dataclasses.replace(ctx, theta2=np.r_[ctx.theta2, q0[system.nq - 4]])  # q0's own wigwag among the samples
     state = search._State.empty(1, system.nq, Regions(world, 0.02))
-    chunk = search._chunk(ctx, target[None], direction[None], np.array([[0.0, 2.0]]), np.full((1, 3), np.nan), np.arange(1), state)
+    free_roll = np.full((1, 3), np.nan)
+    chunk = search._chunk(ctx, target[None], direction[None], np.array([[0.0, 2.0]]), free_roll, np.arange(1), state)
     cand = search._candidates(ctx, chunk, range(len(search.DISTANCE_CHOICES) + 1))
     assert cand is not None  # q0's own family is feasible
     _, _, _, Q, _, where = cand
