@@ -46,14 +46,18 @@ def main() -> None:
     start = time.perf_counter()
     m = reach_map(system, target, primary, secondary, patient)
     t_map = time.perf_counter() - start
-    assert all(np.array_equal(getattr(one, f), getattr(m, f), equal_nan=True) for f in ("q", "clearance"))
+    # The same cells, configurations and reasons; the clearances to coal's round-off (its GJK starts from
+    # the previous query's guess, and the processes query in another order).
+    assert np.array_equal(one.q, m.q, equal_nan=True)
     assert all(np.array_equal(getattr(one, f), getattr(m, f)) for f in ("reachable", "reason"))
+    worst = float(np.nanmax(np.abs(one.clearance - m.clearance), initial=0.0))
+    assert worst < 1e-12
     cells = m.reachable.size
     workers = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     parallel = workers > 1 and cells >= search.PARALLEL_MIN_CELLS
     print(f"map {len(primary)} x {len(secondary)} = {cells} cells: {m.reachable.sum()} reachable "
           f"({100 * m.fraction:.1f} %); the default ran {workers if parallel else 1} process(es) and gave the "
-          "answers of one")
+          f"configurations of one (clearances equal to {worst:.1e} m)")
     print(f"answered by their first candidate: {int(np.sum(m.rank == 0))} of {int(m.reachable.sum())} reachable cells; "
           f"the last answer at position {int(m.rank.max())} of its cell's search order")
     rng = np.random.default_rng(0)

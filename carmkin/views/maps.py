@@ -65,7 +65,7 @@ def reach_map(system, target, primary_deg=np.arange(-90, 91), secondary_deg=np.a
     pose; default the patient model's, else HFS). ``table_samples``: configurations (k, nq) whose table joints
     a motorized table takes (default: mid-range; :func:`carmkin.views.compare.table_samples`).
     ``workers``: processes for a large map (default: the cores this process may use); every cell's answer is
-    the same for any number."""
+    the same for any number (its clearance to coal's round-off)."""
     target = _point(target, "target")
     p = _angles(primary_deg, "primary_deg", -180.0, 180.0)
     s = _angles(secondary_deg, "secondary_deg", -90.0, 90.0)

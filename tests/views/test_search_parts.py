@@ -148,8 +148,11 @@ def test_workers_do_not_change_the_map(monkeypatch):
     patient = ParametricPatient.on_table(system)
     args = (system, (0.0, 0.0, 0.0), np.arange(-90, 91, 6), np.arange(-45, 46, 9), patient)
     one, two = reach_map(*args, workers=1), reach_map(*args, workers=2)
-    for field in ("reachable", "q", "clearance", "distance", "reason", "binding"):
+    for field in ("reachable", "q", "reason", "binding"):
         np.testing.assert_array_equal(getattr(one, field), getattr(two, field))
+    # Clearances to coal's round-off: its GJK starts from the previous query's guess (measured: 1.5e-16 m).
+    for field in ("clearance", "distance"):
+        np.testing.assert_allclose(getattr(one, field), getattr(two, field), rtol=0, atol=1e-12)
     assert one.reachable.any() and (~one.reachable).any()
 
 
