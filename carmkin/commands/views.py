@@ -141,6 +141,8 @@ def _print_plan(system, plan, position) -> None:
         print(f"reachable: q = {common.format_joints(system, plan.q)}")
         print(f"clearance {plan.clearance * MM:.1f} mm, source-to-target {plan.distance * MM:.1f} mm, "
               f"rotation about the beam {_rotation(system, plan.q, position):.1f}°")
+        if plan.clearance_to:
+            print("  clearance to " + ", ".join(f"{k} {v * MM:.1f} mm" for k, v in plan.clearance_to.items()))
         if plan.solver == "qp":
             print("  found by the QP with the motorized table's joints free (the closed form holds them)")
         for m in plan.moves:
@@ -159,7 +161,8 @@ def _plan_json(system, plan, position) -> dict:
            "reason": plan.reason, "binding": plan.binding, "solver": plan.solver}
     if plan.success:
         out.update(q=common.joints_json(system, plan.q), clearance_mm=plan.clearance * MM, distance_mm=plan.distance * MM,
-                   rotation_deg=_rotation(system, plan.q, position))
+                   rotation_deg=_rotation(system, plan.q, position),
+                   clearance_to_mm={k: v * MM for k, v in (plan.clearance_to or {}).items()})
     if plan.nearest is not None:
         out["nearest"] = {"angles_deg": list(plan.nearest.view.angles(position)), "angle_deg": float(np.degrees(plan.angle)),
                           "q": common.joints_json(system, plan.nearest.q), "clearance_mm": plan.nearest.clearance * MM}

@@ -62,7 +62,11 @@ class ViewPlan:
     """A planned view. ``success``; ``q`` (nq,) (NaN when unreachable); ``clearance`` exact (m) to patient,
     table and floor; ``distance`` source–target (m); ``reason`` and ``binding`` (a joint group or
     ``"contact"``) when unreachable; ``moves`` from ``q_current``; ``nearest``: the plan of the nearest
-    reachable view (unreachable views only) and ``angle`` (rad) between the beams."""
+    reachable view (unreachable views only) and ``angle`` (rad) between the beams; ``solver``: ``"closed
+    form"`` or ``"qp"`` (a motorized table's joints freed, :mod:`carmkin.views.refine`). Reachable plans also
+    carry ``x_axis`` (3,) the roll chosen (the source frame's x axis, table frame), ``clearance_to`` the exact
+    clearance (m) to each of ``"patient"`` (every obstacle), ``"table"`` and ``"floor"``, and ``validity``
+    the :class:`~carmkin.robot.validity.ValidityReport` at the margin."""
 
     view: View
     success: bool
@@ -75,6 +79,9 @@ class ViewPlan:
     nearest: "ViewPlan | None" = None
     angle: float = 0.0
     solver: str = "closed form"
+    x_axis: np.ndarray | None = None
+    clearance_to: dict | None = None
+    validity: object = None
 
 
 def patient_obstacles(patient) -> tuple:
@@ -199,6 +206,8 @@ def plan_view(system, view, patient=None, q_current=None, *, margin: float = DEF
             q, clearance, distance = found
             plan = _replace(plan, success=True, q=q, clearance=clearance, distance=distance, reason=None, binding="",
                             solver="qp")
+    if plan.success:
+        plan = _with_report(plan, system, world, margin)
     if plan.success and q_current is not None:
         plan = _with_moves(plan, system, world, q_ref)
     if not plan.success and nearest:
@@ -214,6 +223,23 @@ def _plan_cells(ctx, views) -> list[ViewPlan]:
     out = search.solve_cells(ctx, targets, directions, ranges, x_axes)
     return [ViewPlan(v, bool(out.reachable[i]), out.q[i], float(out.clearance[i]), float(out.distance[i]),
                      out.reason[i], str(out.binding[i])) for i, v in enumerate(views)]
+
+
+def _with_report(plan: ViewPlan, system, world, margin: float) -> ViewPlan:
+    """The roll chosen, the exact clearance to patient, table and floor, and the validity report at the margin."""
+    from carmkin.robot import validity
+    from carmkin.robot.collision import link_of
+
+    distances = world.scene.distances(q=plan.q)
+    obstacles = {o.name for o in world.obstacles}
+    groups = {"patient": [], "table": [], "floor": []}
+    for d, (_, other) in zip(distances.tolist(), world.scene.pairs):
+        group = "patient" if other in obstacles else link_of(other)
+        if group in groups:
+            groups[group].append(d)
+    clearance_to = {k: min(v) for k, v in groups.items() if v}
+    report = validity.check(system, plan.q, margin=margin, scene=world.scene)
+    return _replace(plan, x_axis=system.fk(plan.q)[:3, 0], clearance_to=clearance_to, validity=report)
 
 
 def _with_moves(plan: ViewPlan, system, world, q_from) -> ViewPlan:

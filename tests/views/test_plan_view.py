@@ -228,3 +228,27 @@ def test_the_qp_frees_a_motorized_table_where_the_closed_form_holds_it():
         assert np.any(system.split(plan.q)[1] != system.split(0.5 * (system.lower + system.upper))[1])
         freed += 1
     assert freed >= 2
+
+
+def test_a_plan_reports_its_roll_clearances_and_validity():
+    """The plan's clearance to patient, table and floor against a fresh scene's pairs grouped by hand; its
+    validity report and roll against the FK."""
+    system = SYSTEMS["6-DOF"]
+    patient = ParametricPatient.on_table(system)
+    scene = CollisionScene.from_system(system, patient.obstacles())
+    names = {o.name for o in patient.obstacles()}
+    for p, s in ((0.0, 0.0), (30.0, 20.0), (-45.0, -30.0)):
+        plan = plan_view(system, View.from_angles(p, s, (0.0, 0.0, 0.0), patient), patient, nearest=False)
+        assert plan.success
+        d = scene.distances(q=plan.q)
+        by_hand = {"patient": min(x for x, (_, b) in zip(d, scene.pairs) if b in names),
+                   "table": min(x for x, (_, b) in zip(d, scene.pairs) if b.startswith("table_")),
+                   "floor": min(x for x, (_, b) in zip(d, scene.pairs) if b.startswith("floor_"))}
+        assert set(plan.clearance_to) == set(by_hand)
+        for k in by_hand:
+            assert plan.clearance_to[k] == pytest.approx(by_hand[k], abs=2e-6)
+        assert min(plan.clearance_to.values()) == pytest.approx(plan.clearance, abs=2e-6)
+        assert plan.validity.reachable and plan.validity.min_distance == pytest.approx(plan.clearance, abs=2e-6)
+        np.testing.assert_allclose(plan.x_axis, system.fk(plan.q)[:3, 0], atol=1e-15)
+    unreachable = plan_view(system, View.from_angles(0, 0, (3.0, 0.0, 0.0)), nearest=False)
+    assert unreachable.validity is None and unreachable.clearance_to is None
