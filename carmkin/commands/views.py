@@ -50,6 +50,9 @@ def register(parser: argparse.ArgumentParser) -> None:
     plan.add_argument("--primary-deg", type=common.number(-180.0, 180.0, unit="deg"), help="primary angle (LAO +, deg)")
     plan.add_argument("--secondary-deg", type=common.number(-90.0, 90.0, unit="deg"), help="secondary angle (CRA +, deg)")
     plan.add_argument("--standard", metavar="NAME", help="a standard view's name ('list' lists them)")
+    plan.add_argument("--segment-mm", metavar="X1,Y1,Z1,X2,Y2,Z2",
+                      help="a segment (vessel, screw; table frame, mm): plan its foreshortening-free view with the "
+                           "most clearance, or the one nearest --primary-deg/--secondary-deg when given")
     plan.add_argument("--distance-mm", type=common.number(0.0, 10000.0, open_minimum=True, unit="mm"),
                       help="source-to-target distance (mm; default: free)")
     plan.add_argument("--rotation-deg", type=common.number(-180.0, 180.0, unit="deg"),
@@ -88,7 +91,7 @@ def _patient(system, args):
 
 
 def _plan(args: argparse.Namespace) -> int:
-    from carmkin.views import View, plan_view
+    from carmkin.views import View, plan_perpendicular, plan_view
     from carmkin.views.standard import STANDARD_VIEWS, standard_view
 
     if args.standard == "list":
@@ -101,6 +104,17 @@ def _plan(args: argparse.Namespace) -> int:
     patient = _patient(system, args)
     position = patient if patient is not None else args.patient_position
     distance = None if args.distance_mm is None else args.distance_mm / MM
+    q_current = None if args.q_mm_deg is None else common.parse_joints(args.q_mm_deg, system, "--q-mm-deg")
+    if args.segment_mm is not None:
+        if args.standard is not None or (args.primary_deg is None) != (args.secondary_deg is None):
+            raise common.UsageError("--segment-mm: give no --standard, and --primary-deg with --secondary-deg or neither")
+        ends = common.parse_numbers(args.segment_mm, 6, "--segment-mm") / MM
+        prefer = None
+        if args.primary_deg is not None:
+            prefer = View.from_angles(args.primary_deg, args.secondary_deg, ends[:3], position)
+        plan = plan_perpendicular(system, ends[:3], ends[3:], patient, q_current, prefer=prefer,
+                                  margin=args.margin_mm / MM)
+        return _report(args, system, plan, position)
     if args.standard is not None:
         if args.primary_deg is not None or args.secondary_deg is not None:
             raise common.UsageError("--standard: give either a standard view or --primary-deg/--secondary-deg, not both")
@@ -113,8 +127,11 @@ def _plan(args: argparse.Namespace) -> int:
     else:
         view = View.from_angles(args.primary_deg, args.secondary_deg, target, position, distance,
                                 rotation_deg=args.rotation_deg)
-    q_current = None if args.q_mm_deg is None else common.parse_joints(args.q_mm_deg, system, "--q-mm-deg")
     plan = plan_view(system, view, patient, q_current, margin=args.margin_mm / MM)
+    return _report(args, system, plan, position)
+
+
+def _report(args, system, plan, position) -> int:
     if args.json:
         print(json.dumps(_plan_json(system, plan, position), indent=2))
     else:

@@ -37,6 +37,12 @@ def test_plan_with_a_rotation_reads_it_back(capsys):
     assert "no wigwag within its range gives this rotation" in out and "0.00° away" in out
 
 
+def test_plan_a_segment(capsys):
+    assert main(["views", "plan", "--segment-mm", "0,50,-20,30,0,50", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["success"] and data["clearance_mm"] > 20.0
+
+
 def test_unreachable_exits_1_with_the_nearest_view(capsys):
     assert main(["views", "plan", "--primary-deg", "-70", "--secondary-deg", "35"]) == 1
     out = capsys.readouterr().out
@@ -50,6 +56,9 @@ def test_unreachable_exits_1_with_the_nearest_view(capsys):
                                   ["plan", "--primary-deg", "0", "--secondary-deg", "0", "--patient-position", "XX"],
                                   ["plan", "--primary-deg", "0", "--secondary-deg", "0", "--rotation-deg", "300"],
                                   ["map", "--workers", "0"],
+                                  ["plan", "--segment-mm", "1,2"],
+                                  ["plan", "--segment-mm", "0,0,0,0,0,0"],
+                                  ["plan", "--segment-mm", "0,0,0,0,0,1", "--primary-deg", "3"],
                                   ["map", "--primary-range-deg", "10,-10"]])
 def test_usage_errors_are_one_line(args):
     result = run(*args)

@@ -252,3 +252,31 @@ def test_a_plan_reports_its_roll_clearances_and_validity():
         np.testing.assert_allclose(plan.x_axis, system.fk(plan.q)[:3, 0], atol=1e-15)
     unreachable = plan_view(system, View.from_angles(0, 0, (3.0, 0.0, 0.0)), nearest=False)
     assert unreachable.validity is None and unreachable.clearance_to is None
+
+
+def test_the_best_perpendicular_view_of_a_segment():
+    """plan_perpendicular against plan_view on every member of the family: perpendicular, through the
+    midpoint, valid by a fresh scene, with the most clearance of the reachable members (or, with ``prefer``,
+    the reachable member nearest it)."""
+    from carmkin.views import plan_perpendicular
+
+    system = SYSTEMS["6-DOF"]
+    patient = ParametricPatient.on_table(system)
+    scene = CollisionScene.from_system(system, patient.obstacles())
+    a, b = np.array([0.0, 0.05, -0.02]), np.array([0.03, 0.0, 0.05])
+    members = View.perpendicular_to(a, b, 36)
+    plans = [plan_view(system, v, patient, nearest=False, qp=False) for v in members]
+    assert any(p.success for p in plans) and not all(p.success for p in plans)
+    best = plan_perpendicular(system, a, b, patient, count=36)
+    assert best.success and abs(best.view.axis @ (b - a)) < 1e-12
+    T = system.fk(best.q)
+    w = 0.5 * (a + b) - T[:3, 3]
+    assert np.linalg.norm(w - (w @ T[:3, 2]) * T[:3, 2]) < 1e-9
+    assert validity.check(system, best.q, margin=DEFAULT_MARGIN, scene=scene).reachable
+    assert best.clearance >= max(p.clearance for p in plans if p.success) - 1e-12
+    prefer = np.array([0.0, -1.0, 0.0])
+    near = plan_perpendicular(system, a, b, patient, count=36, prefer=prefer)
+    assert near.success
+    assert near.view.axis @ prefer >= max(p.view.axis @ prefer for p in plans if p.success) - 1e-12
+    far = plan_perpendicular(system, a + [3.0, 0, 0], b + [3.0, 0, 0], patient, count=12)
+    assert not far.success and "no view perpendicular to the segment is reachable" in far.reason
