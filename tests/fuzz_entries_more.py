@@ -180,7 +180,61 @@ def project_points(rng):
         r[0], imaging.project(K, T, X), rtol=1e-9, atol=1e-6)), ("K", "T_frame_camera", "points"))
 
 
+def view_from_angles(rng):
+    from carmkin.interop import dicom
+    from carmkin.views import View
+
+    p, s = float(rng.uniform(-180, 180)), float(rng.choice([rng.uniform(-89, 89), 0.0, 45.0]))
+    target = rng.normal(size=3) * 0.2
+    position = str(rng.choice(["HFS", "FFP", "HFDL", "FFDR"]))
+    rotation = None if rng.random() < 0.5 else float(rng.uniform(-180, 180))
+
+    def check(view):
+        p2, s2 = view.angles(position)
+        ok = abs((p2 - p + 180) % 360 - 180) < 1e-7 and abs(s2 - s) < 1e-7 and g.close(view.target, target)
+        if rotation is not None:  # the pose of the view's axes reads back the rotation
+            T = np.eye(4)
+            x, z = np.array(view.x_axis), view.axis
+            T[:3, :3] = np.column_stack((x, np.cross(z, x), z))
+            r2 = dicom.xa_angles(T, position)[2]
+            ok = ok and abs((r2 - rotation + 180) % 360 - 180) < 1e-7 and abs(x @ z) < 1e-12
+        return ok
+    return maybe_junk(rng, Case(View.from_angles, (p, s, target, position, None, "", rotation), check=check),
+                      ("primary_deg", "secondary_deg", "target", "position"))
+
+
+def view_from_pose(rng):
+    from carmkin.views import View
+
+    T, d = g.pose(rng), float(rng.uniform(0.05, 2.0))
+
+    def check(view):
+        return (g.close(view.axis, T[:3, 2]) and g.close(view.x_axis, T[:3, 0])
+                and g.close(view.target, T[:3, 3] + d * T[:3, 2]) and view.distance == d)
+    return maybe_junk(rng, Case(View.from_pose, (T, d), check=check), ("T_source", "distance"))
+
+
+def plan_a_view(rng):
+    from carmkin.views import View, plan_view
+    from carmkin.views.plan import world_for
+
+    view = View.from_angles(float(rng.uniform(-90, 90)), float(rng.uniform(-45, 45)), rng.normal(size=3) * 0.05)
+    margin = float(rng.choice([0.0, 0.02, 0.1]))
+
+    def check(plan):
+        if not plan.success:
+            return bool(plan.reason)
+        T = PRESET.fk(plan.q)
+        w = np.array(view.target) - T[:3, 3]
+        return (g.close(T[:3, 2], view.axis) and float(np.linalg.norm(w - (w @ T[:3, 2]) * T[:3, 2])) < 1e-9
+                and world_for(PRESET, None).clearance(plan.q)[0] >= margin)
+    return maybe_junk(rng, Case(plan_view, (PRESET, view), {"margin": margin, "nearest": False}, check=check),
+                      ("system", "view"))
+
+
 ENTRIES = {
+    "views.View.from_angles": (view_from_angles, 1), "views.View.from_pose": (view_from_pose, 1),
+    "views.plan_view": (plan_a_view, 0.2),
     "imaging.homography_between": (homography_between, 2), "imaging.dehomogenize": (dehomogenize, 1),
     "imaging.image_border": (image_border, 1), "imaging.measure_distance": (measure_distance, 1),
     "imaging.projection_matrix": (projection_of_configuration, 1),

@@ -114,6 +114,9 @@ def world_for(system, patient):
     dataclass patient model's obstacles are built once per model)."""
     import dataclasses
 
+    from carmkin.robot.validity import require_system
+
+    require_system(system, ViewError)
     if dataclasses.is_dataclass(patient) and patient.__dataclass_params__.frozen:
         try:
             return _world_cached(_model_key(system, patient))

@@ -23,7 +23,7 @@ from carmkin.errors import CarmkinError, ViewError
 from carmkin.imaging.projection import patient_pose
 from carmkin.interop import dicom
 from carmkin.transforms import check_rigid_transform
-from carmkin.validation import real_array, real_scalar
+from carmkin.validation import real_array, real_scalar, rigid_transform
 
 #: Below this norm (m) a direction or segment is refused as undefined.
 DIRECTION_TOLERANCE = 1e-9
@@ -103,10 +103,7 @@ class View:
     def from_pose(cls, T_source, distance=None, name="", roll: bool = True) -> "View":
         """The view of a source pose (4, 4, table frame): its beam through the point ``distance`` (m) ahead of
         the source, at that distance, with its roll (``roll=False``: free)."""
-        try:
-            T = check_rigid_transform(np.asarray(T_source, dtype=float), "T_source")
-        except (CarmkinError, TypeError, ValueError) as exc:
-            raise ViewError(f"T_source must be a rigid 4x4 source pose (m), got {str(exc)[:120]}") from exc
+        T = rigid_transform(T_source, "T_source", error=ViewError)
         d = real_scalar(distance, "distance", error=ViewError, low=DIRECTION_TOLERANCE, high=10.0, unit="m")
         return cls(tuple(T[:3, 3] + d * T[:3, 2]), tuple(T[:3, 2]), d, name, tuple(T[:3, 0]) if roll else None)
 
