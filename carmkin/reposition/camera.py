@@ -92,11 +92,11 @@ def camera_in_marker(T_table_marker, T_table_camera) -> np.ndarray:
 
 
 def check_image_size(image_size) -> tuple[int, int]:
-    """``image_size`` as (columns, rows) positive ints (px), else a :class:`CameraError`."""
-    try:
-        columns, rows = (int(v) for v in image_size)
-    except (TypeError, ValueError) as exc:
-        raise CameraError(f"image_size must be (columns, rows) in px, got {image_size!r}") from exc
-    if columns < 1 or rows < 1:
-        raise CameraError(f"image_size must be positive (px), got {image_size!r}")
+    """``image_size`` as (columns, rows) positive ints (px), else a :class:`CameraError` (a float size is
+    refused, never truncated)."""
+    from carmkin.validation import integer
+
+    if isinstance(image_size, (str, bytes, dict)) or not hasattr(image_size, "__len__") or len(image_size) != 2:
+        raise CameraError(f"image_size must be (columns, rows) in px, got {image_size!r:.80}")
+    columns, rows = (integer(v, f"image_size[{k}]", low=1, error=CameraError, unit="px") for k, v in enumerate(image_size))
     return columns, rows

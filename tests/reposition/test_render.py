@@ -48,7 +48,9 @@ def test_bad_render_settings_raise():
         render.render(BOARD, K, SIZE, T, blur_px=-1.0, noise_gray=0.0)
     with pytest.raises(camera.CameraError, match="rng"):
         render.render(BOARD, K, SIZE, T, noise_gray=1.0)
-    with pytest.raises(camera.CameraError, match="image_size"):
-        render.render(BOARD, K, (0, 10), T, noise_gray=0.0)
+    for size in ((0, 10), (640.5, 480), (640.0, 480), ("640", 480), (640,), 640, "640x480", (True, 480)):
+        with pytest.raises(camera.CameraError, match="image_size"):
+            render.render(BOARD, K, size, T, noise_gray=0.0)
+    assert camera.check_image_size((np.int64(640), np.int32(480))) == (640, 480)
     with pytest.raises(pose.PoseError, match="uint8"):
         pose.detect_corners(np.zeros((10, 10)), BOARD)
