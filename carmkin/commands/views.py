@@ -108,6 +108,9 @@ def _plan(args: argparse.Namespace) -> int:
     if args.segment_mm is not None:
         if args.standard is not None or (args.primary_deg is None) != (args.secondary_deg is None):
             raise common.UsageError("--segment-mm: give no --standard, and --primary-deg with --secondary-deg or neither")
+        if args.distance_mm is not None or args.rotation_deg is not None:
+            raise common.UsageError("--segment-mm searches the distance and the roll: give no --distance-mm or "
+                                    "--rotation-deg")
         ends = common.parse_numbers(args.segment_mm, 6, "--segment-mm") / MM
         prefer = None
         if args.primary_deg is not None:

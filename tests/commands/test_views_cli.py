@@ -57,6 +57,7 @@ def test_unreachable_exits_1_with_the_nearest_view(capsys):
                                   ["plan", "--primary-deg", "0", "--secondary-deg", "0", "--rotation-deg", "300"],
                                   ["map", "--workers", "0"],
                                   ["plan", "--segment-mm", "1,2"],
+                                  ["plan", "--segment-mm", "0,0,0,0,0,1", "--rotation-deg", "90"],
                                   ["plan", "--segment-mm", "0,0,0,0,0,0"],
                                   ["plan", "--segment-mm", "0,0,0,0,0,1", "--primary-deg", "3"],
                                   ["map", "--primary-range-deg", "10,-10"]])
