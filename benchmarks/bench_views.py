@@ -16,7 +16,6 @@ per-view QP loop they replace.
 from __future__ import annotations
 
 import argparse
-import os
 import statistics
 import time
 
@@ -26,6 +25,7 @@ import carmkin
 from carmkin import qp_ik
 from carmkin.patient import ParametricPatient
 from carmkin.views import View, plan_view, reach_map, search
+from carmkin.views.maps import default_workers
 
 from _timing import row
 
@@ -53,7 +53,7 @@ def main() -> None:
     worst = float(np.nanmax(np.abs(one.clearance - m.clearance), initial=0.0))
     assert worst < 1e-12
     cells = m.reachable.size
-    workers = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    workers = default_workers()
     parallel = workers > 1 and cells >= search.PARALLEL_MIN_CELLS
     print(f"map {len(primary)} x {len(secondary)} = {cells} cells: {m.reachable.sum()} reachable "
           f"({100 * m.fraction:.1f} %); the default ran {workers if parallel else 1} process(es) and gave the "

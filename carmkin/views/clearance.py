@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from carmkin.robot.clearance import POINT_DISTANCE_SHAPES, BoundedScene, bounding_sphere
+from carmkin.robot.clearance import POINT_DISTANCE_SHAPES, BoundedScene
 from carmkin.robot.collision import CollisionScene, link_of
 
 
@@ -30,15 +30,20 @@ class World:
         self.obstacles = tuple(obstacles)
         self.scene = CollisionScene.from_system(system, self.obstacles)
         self.model = self.scene.model
-        self.data = self.model.createData()
-        gm = self.scene.geometry_model
-        objects = gm.geometryObjects
+        objects = self.scene.geometry_model.geometryObjects
         self.bounded = BoundedScene(self.scene, system)
-        self._beam_parts = self._beam_spheres(objects)
         names = {o.name for o in self.obstacles}
-        environment = [o for o in objects if o.name in names or link_of(o.name) == "table"]
-        self._environment = _Fixed(environment)
-        self.roll_lever = self._roll_levers(objects)
+        self._environment = _Fixed([o for o in objects if o.name in names or link_of(o.name) == "table"])
+        # Every geometry's pose in the source frame at the zero configuration (for the beam spheres and levers).
+        from carmkin.qp.options import SOURCE_FRAME
+
+        data, geometry = self.model.createData(), pin.GeometryData(self.scene.geometry_model)
+        pin.framesForwardKinematics(self.model, data, pin.neutral(self.model))
+        pin.updateGeometryPlacements(self.model, data, self.scene.geometry_model, geometry)
+        source = self.model.getFrameId(SOURCE_FRAME)
+        in_source = [data.oMf[source].actInv(M) for M in geometry.oMg]
+        self._beam_parts = self._beam_spheres(objects, in_source)
+        self.roll_lever = self._roll_levers(objects, in_source, self.model.frames[source].parentJoint)
 
     # --- exact clearance ---------------------------------------------------------------------------------
     def clearance(self, q, stop_below: float = -np.inf) -> tuple[float, int]:
@@ -56,19 +61,13 @@ class World:
     def pair_names(self, k: int) -> tuple[str, str]:
         return self.scene.pairs[k]
 
-    def _roll_levers(self, objects) -> np.ndarray:
+    def _roll_levers(self, objects, in_source, last: int) -> np.ndarray:
         """(P,) per pair: the largest distance (m) of its first geometry's points from the beam axis when that
-        geometry rides on the orbital joint (rigid with the source) and its second is a convex shape fixed to
-        the table frame; inf otherwise (the pair's motion is not set by distance and roll alone)."""
-        from carmkin.qp.options import SOURCE_FRAME
+        geometry rides on the orbital joint ``last`` (rigid with the source) and its second is a convex shape
+        fixed to the table frame; inf otherwise (the pair's motion is not set by distance and roll alone).
+        ``in_source``: every geometry's pose in the source frame."""
         from carmkin.sweeps.clearance import bounding_radius
 
-        data = self.model.createData()
-        pin.framesForwardKinematics(self.model, data, pin.neutral(self.model))
-        pin.updateGeometryPlacements(self.model, data, self.scene.geometry_model, self.scene.geometry_data)
-        source = self.model.getFrameId(SOURCE_FRAME)
-        T_source = data.oMf[source]
-        last = self.model.frames[source].parentJoint
         convex = [type(o.geometry).__name__ in _CONVEX_SHAPES or type(o.geometry).__name__.startswith("Convex")
                   for o in objects]
         first, second = self.bounded.first, self.bounded.second
@@ -76,30 +75,23 @@ class World:
         for k, (a, b) in enumerate(zip(first.tolist(), second.tolist())):
             if objects[a].parentJoint != last or objects[b].parentJoint != 0 or not (convex[a] and convex[b]):
                 continue
-            centre = T_source.actInv(self.scene.geometry_data.oMg[a]).translation
+            centre = in_source[a].translation
             lever[k] = float(np.hypot(centre[0], centre[1])) + bounding_radius(objects[a].geometry)
         return lever
 
     # --- cheap bound for ranking ---------------------------------------------------------------------------
-    def _beam_spheres(self, objects):
+    @staticmethod
+    def _beam_spheres(objects, in_source):
         """(offset along the beam from the source (m), radius (m)) of spheres holding the source housing and
-        the detector, measured at the zero configuration in the source frame."""
-        from carmkin.qp.options import SOURCE_FRAME
-
-        q0 = pin.neutral(self.model)
-        data = self.model.createData()
-        pin.framesForwardKinematics(self.model, data, q0)
-        T_source = data.oMf[self.model.getFrameId(SOURCE_FRAME)]
+        the detector (``in_source``: every geometry's pose in the source frame)."""
         parts = []
         for link in ("xray_source", "detector"):
-            for o in objects:
+            for g, o in enumerate(objects):
                 if link_of(o.name) != link:
                     continue
-                centre, radius = bounding_sphere(o)
-                world = data.oMi[o.parentJoint].act(centre)
-                local = T_source.actInv(world)
-                along = float(local[2])
-                parts.append((along, radius + float(np.hypot(local[0], local[1]))))
+                o.geometry.computeLocalAABB()
+                local = in_source[g].act(np.asarray(o.geometry.aabb_center, dtype=float))
+                parts.append((float(local[2]), float(o.geometry.aabb_radius) + float(np.hypot(local[0], local[1]))))
         return parts
 
     def beam_bound(self, sources: np.ndarray, directions: np.ndarray) -> np.ndarray:

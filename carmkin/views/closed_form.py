@@ -183,7 +183,7 @@ def source_x_axes(theta2, theta4, frame) -> np.ndarray:
     return x @ np.asarray(frame)[:3, :3].T
 
 
-def roll_error(system, directions, x_axes, theta2, frame) -> np.ndarray:
+def roll_error(directions, x_axes, theta2, frame) -> np.ndarray:
     """(N, K, 2) signed angle (rad) about each beam from the wanted x axis ``x_axes`` (N, 3) (unit, ⊥ the
     beam) to the source's x axis of the family (θ2 ``theta2`` (N, K), sign σ); NaN where θ4 is a free roll."""
     B = np.asarray(frame)[:3, :3]
@@ -201,13 +201,13 @@ def roll_error(system, directions, x_axes, theta2, frame) -> np.ndarray:
     return np.where(degenerate, np.nan, np.arctan2(sine, cosine))
 
 
-def theta2_for_roll(system, directions, x_axes, theta2, frame) -> np.ndarray:
+def theta2_for_roll(directions, x_axes, theta2, frame) -> np.ndarray:
     """(N, R) wigwag values (rad, NaN-padded) at which a family of the beam ``directions`` (N, 3) has the
     source's x axis along ``x_axes`` (N, 3): sign changes of :func:`roll_error` over the samples ``theta2``
     (K,), refined by bisection to :data:`ROLL_ROOT_TOLERANCE` (vectorised over every bracket)."""
     N = len(directions)
     grid = np.broadcast_to(np.asarray(theta2, dtype=float), (N, len(theta2)))
-    e = roll_error(system, directions, x_axes, grid, frame)  # (N, K, 2)
+    e = roll_error(directions, x_axes, grid, frame)  # (N, K, 2)
     with np.errstate(invalid="ignore"):
         exact = np.abs(e) <= ROLL_ROOT_TOLERANCE
         # A zero crossing, not the ±π wrap: the two ends are within π of each other across zero.
@@ -219,7 +219,7 @@ def theta2_for_roll(system, directions, x_axes, theta2, frame) -> np.ndarray:
         if not len(a) or np.max(b - a) <= ROLL_ROOT_TOLERANCE:
             break
         m = 0.5 * (a + b)
-        em = roll_error(system, directions[n], x_axes[n], m[:, None], frame)[np.arange(len(m)), 0, sigma]
+        em = roll_error(directions[n], x_axes[n], m[:, None], frame)[np.arange(len(m)), 0, sigma]
         left = np.sign(em) == np.sign(ea)
         a, ea = np.where(left, m, a), np.where(left, em, ea)
         b = np.where(left, b, m)
@@ -234,13 +234,13 @@ def theta2_for_roll(system, directions, x_axes, theta2, frame) -> np.ndarray:
     return out
 
 
-def with_roll(fam: Families, system, directions, x_axes, frame, rows) -> Families:
+def with_roll(fam: Families, directions, x_axes, frame, rows) -> Families:
     """``fam`` with only the families of cells ``rows`` (bool (N,)) whose source x axis is along ``x_axes``
     (to :data:`ROLL_TOLERANCE`) left feasible there (the others' λ intervals emptied)."""
     import dataclasses
 
     idx = np.flatnonzero(rows)
-    e = roll_error(system, directions[idx], x_axes[idx], fam.theta[idx, :, 0, 0], frame)
+    e = roll_error(directions[idx], x_axes[idx], fam.theta[idx, :, 0, 0], frame)
     off = np.zeros(fam.lo.shape, dtype=bool)
     with np.errstate(invalid="ignore"):
         off[idx] = ~(np.abs(e) <= ROLL_TOLERANCE)

@@ -86,10 +86,13 @@ def reach_map(system, target, primary_deg=np.arange(-90, 91), secondary_deg=np.a
                     out.binding.reshape(shape), out.reason.reshape(shape), out.rank.reshape(shape))
 
 
+def default_workers() -> int:
+    """The processes a large map uses by default: the cores this process may use."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
 def _workers(value) -> int:
-    if value is None:
-        return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    return integer(value, "workers", low=1, error=ViewError)
+    return default_workers() if value is None else integer(value, "workers", low=1, error=ViewError)
 
 
 def carm_alone(system):

@@ -32,6 +32,7 @@ class Regions:
         self.where = np.zeros((0, 2))
         self.lever = np.zeros(0)
         self.slack = np.zeros(0)
+        self._order = None  # the regions sorted by cell, until the next add
 
     def add(self, cells, where, distances, pairs) -> None:
         """Regions about candidates (s, ρ) ``where`` (M, 2) of ``cells`` (M,) whose pairs ``pairs`` (M,) are at
@@ -45,13 +46,16 @@ class Regions:
         self.where = np.vstack((self.where, where[keep]))
         self.lever = np.r_[self.lever, lever[keep]]
         self.slack = np.r_[self.slack, self.margin - d - accuracy(np.abs(d))]
+        self._order = None
 
     def contain(self, cells, where) -> np.ndarray:
         """(M,) True where candidate (s, ρ) ``where[m]`` lies in a region of cell ``cells[m]``."""
         out = np.zeros(len(cells), dtype=bool)
         if not len(self.cell) or not len(cells):
             return out
-        order = np.argsort(self.cell, kind="stable")
+        if self._order is None:
+            self._order = np.argsort(self.cell, kind="stable")
+        order = self._order
         sorted_cells = self.cell[order]
         start = np.searchsorted(sorted_cells, cells, "left")
         count = np.searchsorted(sorted_cells, cells, "right") - start

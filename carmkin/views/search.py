@@ -189,12 +189,10 @@ class _Chunk:
         Samples :data:`FINE_DISTANCE_SAMPLES` per cell on first use."""
         lo, hi = self.distance_range[:, 0], self.distance_range[:, 1]
         if self.fine is None:
-            self.fine = np.full((len(lo), FINE_DISTANCE_SAMPLES), np.nan)
-            rows = np.arange(len(lo))
-            grid = lo[rows, None] + (hi - lo)[rows, None] * np.linspace(0, 1, FINE_DISTANCE_SAMPLES)
-            d = np.repeat(self.directions[rows], FINE_DISTANCE_SAMPLES, axis=0)
-            sources = self.targets[rows, None, :] - grid[..., None] * self.directions[rows, None, :]
-            self.fine[rows] = world.beam_bound(sources.reshape(-1, 3), d).reshape(len(rows), FINE_DISTANCE_SAMPLES)
+            grid = lo[:, None] + (hi - lo)[:, None] * np.linspace(0, 1, FINE_DISTANCE_SAMPLES)
+            sources = self.targets[:, None, :] - grid[..., None] * self.directions[:, None, :]
+            d = np.repeat(self.directions, FINE_DISTANCE_SAMPLES, axis=0)
+            self.fine = world.beam_bound(sources.reshape(-1, 3), d).reshape(len(lo), FINE_DISTANCE_SAMPLES)
         step = (hi - lo)[n] / (FINE_DISTANCE_SAMPLES - 1)
         with np.errstate(divide="ignore", invalid="ignore"):
             u = np.where(step > 0, (s - lo[n]) / step, 0.0)
@@ -244,15 +242,15 @@ def _chunk(ctx: Context, targets, directions, distance_range, x_axes, index, sta
         frame = _frame(system, hold)
         theta2 = ctx.theta2
         if fixed.any():
-            roots = closed_form.theta2_for_roll(system, directions, x_axes, ctx.theta2, frame)
+            roots = closed_form.theta2_for_roll(directions[fixed], x_axes[fixed], ctx.theta2, frame)
             theta2 = np.full((N, max(len(ctx.theta2), roots.shape[1])), np.nan)
             theta2[~fixed, :len(ctx.theta2)] = ctx.theta2
-            theta2[fixed, :roots.shape[1]] = roots[fixed]
-            state.no_roll[index[fixed & np.all(np.isnan(roots), axis=1)]] = True
+            theta2[fixed, :roots.shape[1]] = roots
+            state.no_roll[index[fixed][np.all(np.isnan(roots), axis=1)]] = True
         with np.errstate(invalid="ignore"):  # NaN-padded wigwag values make empty families
             fam = closed_form.families(system, targets, directions, theta2, frame, ctx.q_ref, distance_range)
             if fixed.any():
-                fam = closed_form.with_roll(fam, system, directions, x_axes, frame, fixed)
+                fam = closed_form.with_roll(fam, directions, x_axes, frame, fixed)
         excess = np.where(np.isnan(fam.angle_excess), np.inf, fam.angle_excess).min(axis=(1, 2))
         state.angle_excess[index] = np.minimum(state.angle_excess[index], excess)
         state.line_empty[index] |= np.any((fam.angle_excess == 0) & (fam.lo > fam.hi), axis=(1, 2))
@@ -339,7 +337,8 @@ def _solve(ctx: Context, targets, directions, distance_range, x_axes) -> Outcome
             n, q, where, rank = _ordered(first)
             head = rank == 0
             _check(ctx, state, chunk.index[n[head]], q[head], where[head], rank[head])
-    # The rest, for the cells their first candidate left open, in rounds of growing size.
+    # The rest, for the cells their first candidate left open, in rounds of growing size (their families are
+    # built again: cheaper than keeping every chunk's for the few cells that need them).
     left = np.flatnonzero(state.searched & ~state.reachable)
     for a in range(0, len(left), CHUNK):
         chunk = _chunk(ctx, targets, directions, distance_range, x_axes, left[a:a + CHUNK], state)
