@@ -8,6 +8,8 @@ per-view QP loop they replace.
    the source position the C-arm's geometry gives, the orbital offset from the target, the patient as
    obstacles), timed on a random sample of the cells and scaled to the map's cell count.
 2. ``plan_view`` median over random views of the same grid.
+3. The QP after the closed form on the motorized preset (the cells of a 10° map the held table leaves
+   unreachable).
 
     python benchmarks/bench_views.py            # the full 181 × 91 map
     python benchmarks/bench_views.py --quick    # 37 × 19
@@ -83,6 +85,22 @@ def main() -> None:
         plan_view(system, view, patient, nearest=False)
         times.append(time.perf_counter() - start)
     print(row("plan_view median (no nearest-view search)", statistics.median(times), unit="ms"))
+    qp_after_closed_form(target)
+
+
+def qp_after_closed_form(target) -> None:
+    """The QP after the closed form on the motorized preset: of the cells of a 10° map that the held table
+    leaves unreachable, how many plan_view reaches by freeing the table joints, and at what cost."""
+    system = carmkin.load_preset("siremobile-iso-c3d-motorized-table")
+    patient = ParametricPatient.on_table(system)
+    m = reach_map(system, target, np.arange(-90, 91, 10), np.arange(-45, 46, 10), patient)
+    cells = list(zip(*np.nonzero(~m.reachable)))
+    freed, start = 0, time.perf_counter()
+    for i, j in cells:
+        view = View.from_angles(m.primary_deg[i], m.secondary_deg[j], target, patient)
+        freed += plan_view(system, view, patient, nearest=False).solver == "qp"
+    print(f"motorized table, 10° map: the QP after the closed form reaches {freed} of the {len(cells)} cells the held "
+          f"table leaves unreachable ({(time.perf_counter() - start) / max(len(cells), 1):.2f} s a cell)")
 
 
 if __name__ == "__main__":
