@@ -17,7 +17,7 @@ validity at the 10 mm margin) against the unchecked closed form ``analytic_ik.so
 (in-range, collision-free configurations), both timed alike (mean of 20 calls per target, median over
 targets), the acceptance being ≤ 5x; and the clearance of many configurations (``PreparedIK.clearance``:
 bounding-box broad phase, exact coal distances where they decide) beside coal on every pair
-(``CollisionScene.distances``), with and without a patient.
+(``World.distances``), with and without a patient.
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ import qpsolvers
 import carmkin
 from carmkin.qp.tasks import PoseTask
 from carmkin.qp_ik import BACKENDS, QPIK, QPIKOptions, default_backend
-from carmkin.robot.collision import CollisionScene, Obstacle
+from carmkin.world import Obstacle, World
 
 sys.path.insert(0, str(Path(__file__).parent))
 from _timing import per_target_medians  # noqa: E402
@@ -157,7 +157,7 @@ def main() -> int:
     system = carmkin.load_preset("siremobile-iso-c3d")
     options = QPIKOptions()
     margin = options.safety_margin
-    scene = CollisionScene.from_system(system)
+    scene = World(system)
     model = scene.model
     rng = np.random.default_rng(args.seed)
     targets, _, seeds = make_cases(system, scene, n, args.perturbation, margin, rng)
@@ -243,7 +243,7 @@ def clearance(system, n: int, rng) -> None:
     qs = rng.uniform(system.lower, system.upper, (n, 6))
     for label, obstacles in (("no patient", []), ("patient (box + capsule)", patient)):
         solver = qp_ik.prepare(system, obstacles)
-        scene = CollisionScene.from_system(system, obstacles)
+        scene = World(system, obstacles)
         start = time.perf_counter()
         full = np.array([scene.distances(q=q).min() for q in qs])
         t_full = time.perf_counter() - start

@@ -28,7 +28,7 @@ from _timing import median_time, row
 
 import carmkin
 from carmkin.model.params import JointRange
-from carmkin.robot.collision import CollisionScene, Obstacle
+from carmkin.world import Obstacle, World
 from carmkin.sweeps import astra_vectors, plan_sweep, positioner_angles, tigre_geometry
 
 PATIENT = [Obstacle.box("patient", (0.5, 0.3, 1.6), center=(0.0, 0.0, 0.0))]
@@ -41,7 +41,7 @@ def plan_and_export(system):
 
 
 def dense_check(system, sweep):
-    scene = CollisionScene.from_system(system, PATIENT)
+    scene = World(system, PATIENT)
     data = scene.model.createData()
     phis = np.append(np.arange(sweep.angles[0], sweep.angles[-1], math.radians(0.1)), sweep.angles[-1])
     return min(scene.distances(data, q=sweep.configuration(p)).min() for p in phis)

@@ -30,7 +30,7 @@ import pinocchio as pin
 
 import carmkin
 from carmkin import analytic_ik, qp_ik
-from carmkin.robot.collision import CollisionScene
+from carmkin.world import World
 from carmkin.studies import table_workspace
 from carmkin.studies.table_workspace import desired_configurations
 
@@ -50,7 +50,7 @@ def correct(system, scene, q, T, margin) -> bool:
 
 def run(system, poses, solve) -> tuple[float, float, dict]:
     """(success fraction, median seconds per target, count per path) of ``solve(T) -> result``."""
-    scene = CollisionScene.from_system(system)
+    scene = World(system)
     margin = qp_ik.QPIKOptions().safety_margin
     ok, times, paths = 0, [], {}
     for T in poses:

@@ -10,6 +10,9 @@ per-view QP loop they replace.
 2. ``plan_view`` median over random views of the same grid.
 3. The QP after the closed form on the motorized preset (the cells of a 10° map the held table leaves
    unreachable).
+4. No slowdown from the one collision world (issue 27): ``reach_map`` (one process) and ``plan_view`` timed in
+   fresh interpreters on today's code and on the code before the world (:data:`BASELINE_REV`), same grid, same
+   patient, same margin (20 mm, the views' default then), in the same run; the reachable cells must agree.
 
     python benchmarks/bench_views.py            # the full 181 × 91 map
     python benchmarks/bench_views.py --quick    # 37 × 19
@@ -30,6 +33,37 @@ from carmkin.views import View, plan_view, reach_map, search
 from carmkin.views.maps import default_workers
 
 from _timing import row
+
+#: The last commit before the one collision world (issue 27): the "previous code" of section 4.
+BASELINE_REV = "dd205b7"
+#: Section 4's measurement, run in a fresh interpreter on either code: reach_map (one process) and plan_view
+#: median, at the views' former default margin of 20 mm on both.
+TIMING_CODE = """
+import json, statistics, time
+import numpy as np
+import carmkin
+from carmkin.patient import ParametricPatient
+from carmkin.views import View, plan_view, reach_map
+step = {step}
+system = carmkin.load_preset("siremobile-iso-c3d")
+patient = ParametricPatient.on_table(system)
+target = np.zeros(3)
+primary, secondary = np.arange(-90, 91, step), np.arange(-45, 46, step)
+reach_map(system, target, [0], [0], patient, margin=0.02)
+best = np.inf
+for _ in range(2):
+    start = time.perf_counter()
+    m = reach_map(system, target, primary, secondary, patient, margin=0.02, workers=1)
+    best = min(best, time.perf_counter() - start)
+rng = np.random.default_rng(0)
+times = []
+for _ in range(40):
+    view = View.from_angles(primary[rng.integers(len(primary))], secondary[rng.integers(len(secondary))], target, patient)
+    start = time.perf_counter()
+    plan_view(system, view, patient, nearest=False, margin=0.02)
+    times.append(time.perf_counter() - start)
+print(json.dumps(dict(map=best, plan=statistics.median(times), reachable=m.reachable.astype(int).tolist())))
+"""
 
 
 def main() -> None:
@@ -86,6 +120,27 @@ def main() -> None:
         times.append(time.perf_counter() - start)
     print(row("plan_view median (no nearest-view search)", statistics.median(times), unit="ms"))
     qp_after_closed_form(target)
+    against_previous_code(step)
+
+
+def against_previous_code(step: int) -> None:
+    """Section 4: today's reach_map and plan_view against the code before the one world, in the same run."""
+    from _baseline import checkout, run
+
+    old = checkout(BASELINE_REV)
+    if old is None:
+        print(f"no git history here: the comparison with {BASELINE_REV} (before the one world) is skipped")
+        return
+    code = TIMING_CODE.format(step=step)
+    before, now = run(code, old), run(code)
+    same = before["reachable"] == now["reachable"]
+    print(f"against the code before the one world ({BASELINE_REV}), margin 20 mm, fresh interpreters, same run: "
+          f"{'the same' if same else 'DIFFERENT'} reachable cells")
+    print(row(f"reach_map {len(np.arange(-90, 91, step))} x {len(np.arange(-45, 46, step))}, 1 process, before",
+              before["map"], unit="s"))
+    print(row("reach_map, 1 process, now", now["map"], before["map"], unit="s"))
+    print(row("plan_view median, before", before["plan"], unit="ms"))
+    print(row("plan_view median, now", now["plan"], before["plan"], unit="ms"))
 
 
 def qp_after_closed_form(target) -> None:

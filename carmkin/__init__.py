@@ -29,6 +29,7 @@ __all__ = [
     "CArmGeometry",
     "CArmSystem",
     "CarmkinError",
+    "DEFAULT_MARGIN",
     "InvalidConfigurationError",
     "InvalidParameterError",
     "InvalidPoseError",
@@ -46,7 +47,7 @@ __all__ = [
 #: Submodules loaded on first attribute access (``carmkin.analytic_ik.solve(...)`` after ``import carmkin``)
 #: so that importing carmkin does not pull in the QP solvers, coal or meshcat.
 _LAZY_SUBMODULES = {"model", "robot", "analytic_ik", "analytic", "qp_ik", "qp", "singularity", "studies",
-                    "imaging", "plots", "reposition", "transforms", "viz", "sweeps", "patient", "views"}
+                    "imaging", "plots", "reposition", "transforms", "viz", "sweeps", "patient", "views", "world"}
 
 
 def _version() -> str:
@@ -63,6 +64,10 @@ def __getattr__(name: str):
     if name == "__version__":  # computed on first use: importing carmkin stays light
         globals()["__version__"] = _version()
         return globals()["__version__"]
+    if name == "DEFAULT_MARGIN":  # the one default clearance margin (m): carmkin.world.DEFAULT_MARGIN
+        from carmkin.world.tolerances import DEFAULT_MARGIN
+
+        return DEFAULT_MARGIN
     if name in _LAZY_SUBMODULES:
         import importlib
 

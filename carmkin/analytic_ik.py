@@ -36,6 +36,7 @@ Nothing is clipped: out-of-range joints are reported in :attr:`BranchStatus.exce
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 
 import numpy as np
@@ -104,7 +105,15 @@ def solve(system, T, q_current=None) -> IKResult:
     else:
         result = ik.regular(T, q0, q1, det_j, q_ref)
     result.pose_correction = correction
+    result._check = functools.partial(_validity, system)
     return result
+
+
+def _validity(system, q):
+    """The validity report of ``q`` at the one default margin (:func:`carmkin.robot.validity.check`)."""
+    from carmkin.robot import validity
+
+    return validity.check(system, q)
 
 
 def solve_batch(system, Ts, q_current=None) -> BatchResult:

@@ -1,7 +1,7 @@
 """QP inverse kinematics with joint limits and collision avoidance, and the one solve for every system.
 
 :func:`solve` is the front door (the ``carmkin.qp_ik.solve`` contract); :func:`prepare` builds the problem
-once (system, collision scene with the obstacles, options, backend) for many solves, and :func:`solve` is a
+once (system, collision world with the obstacles, options, backend) for many solves, and :func:`solve` is a
 thin wrapper of it. It picks the path itself:
 
 1. the closed form where it applies — the 6-DOF closed form of :mod:`carmkin.analytic_ik` on a 6-joint
@@ -51,7 +51,7 @@ from carmkin.qp.results import (
 from carmkin.qp.step import StepQP, build_step, solve_step
 from carmkin.qp.targets import AimTarget, AxisTarget, closed_form_pose, make_task
 from carmkin.robot import validity
-from carmkin.robot.collision import CollisionScene, Obstacle
+from carmkin.world import Obstacle, World
 
 __all__ = [
     "BACKENDS", "DEFAULT_RANDOM_SEEDS", "AimTarget", "AxisTarget", "BranchReport", "CollisionAvoidance",
@@ -64,19 +64,19 @@ __all__ = [
 
 def prepare(system, obstacles: Sequence[Obstacle] = (), options: QPIKOptions = QPIKOptions(), *, backend=None,
             accept: Callable[[object], bool] | None = None, redundancy: Redundancy = Redundancy(),
-            search: SearchOptions = SearchOptions(), scene: CollisionScene | None = None) -> PreparedIK:
+            search: SearchOptions = SearchOptions(), world: World | None = None) -> PreparedIK:
     """The IK of ``system`` built once and solved many times: ``prepare(system, obstacles=patient)
-    .solve(T, q_current=q)`` gives what :func:`solve` gives, without rebuilding the collision scene, the
+    .solve(T, q_current=q)`` gives what :func:`solve` gives, without rebuilding the collision world, the
     backend and the tasks at each call; ``.check(q)`` is the validity at the margin, ``.clearance(qs)`` the
     exact smallest distance of many configurations (:class:`~carmkin.qp.prepared.PreparedIK`).
 
     ``obstacles``: a list of :class:`~carmkin.robot.collision.Obstacle` fixed in the table frame (or a
-    prebuilt ``scene``); ``options`` (:class:`QPIKOptions`: tolerances, iterations, the safety margin);
+    prebuilt ``world``); ``options`` (:class:`QPIKOptions`: tolerances, iterations, the safety margin);
     ``backend``: QP backend name or object; ``accept``: acceptance rule on the validity report;
     ``redundancy`` (:class:`Redundancy`: weights, prefer, free); ``search`` (:class:`SearchOptions`).
     """
     return PreparedIK(system, obstacles, options, backend=backend, accept=accept, redundancy=redundancy,
-                      search=search, scene=scene)
+                      search=search, world=world)
 
 
 #: Prepared solvers :func:`solve` keeps per system (the most recently used option sets).
@@ -99,7 +99,7 @@ def solve(
     backend=None,
     accept: Callable[[object], bool] | None = None,
     *,
-    scene: CollisionScene | None = None,
+    world: World | None = None,
     weights=None,
     prefer: str | None = None,
     free: Sequence[str] | None = None,
@@ -118,7 +118,7 @@ def solve(
     direction, roll free) or an :class:`AimTarget`. ``q_current`` (nq,), within the joint ranges: current
     joints; reference of the branch choice (and of the roll of axis/aim targets), first QP seed, held value
     of locked joints (default: mid-range, locked joints at 0). ``obstacles``: extra bodies in the table frame
-    (or a prebuilt ``scene`` holding them). ``accept(report) -> bool`` on the
+    (or a prebuilt ``world`` holding them). ``accept(report) -> bool`` on the
     :class:`~carmkin.robot.validity.ValidityReport` (margin ``options.safety_margin``, the margin of every
     report of the result): the acceptance rule of closed-form branches and QP answers (default: joints in
     range and no pair inside the margin).
@@ -136,7 +136,7 @@ def solve(
     obstacles = obstacle_list(obstacles)
     redundancy = Redundancy(weights, prefer, free)
     search = SearchOptions(closed_form, qp, random_seeds, rng_seed)
-    reusable = not obstacles and scene is None and (backend is None or isinstance(backend, str))
+    reusable = not obstacles and world is None and (backend is None or isinstance(backend, str))
     if reusable:
         try:
             key = (options, backend, accept, redundancy, search)
@@ -154,7 +154,7 @@ def solve(
             cache.pop(next(iter(cache)))
     else:
         solver = prepare(system, obstacles, options, backend=backend, accept=accept, redundancy=redundancy,
-                         search=search, scene=scene)
+                         search=search, world=world)
     return solver.solve(target, q_current, seeds=seeds, record=record)
 
 

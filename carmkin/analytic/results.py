@@ -56,7 +56,8 @@ class IKResult:
     (m, rad); ``chosen``: index of the branch picked by the rules of §4.4.2; ``branches``: the two
     :class:`BranchStatus`; ``det_j``: det J of eq. 4.7 at the pose (same for both branches);
     ``pose_correction``: ``‖T_rigid − T‖_F`` by which a nearly rigid ``T`` was projected onto the nearest
-    rigid transform (:mod:`carmkin.analytic.poses`; 0 for a rigid one).
+    rigid transform (:mod:`carmkin.analytic.poses`; 0 for a rigid one); :attr:`validity`: the §4.4.3
+    validity report of the chosen solution at the one default margin (computed on first read).
     """
 
     solutions: np.ndarray
@@ -64,6 +65,17 @@ class IKResult:
     branches: tuple
     det_j: float
     pose_correction: float = 0.0
+    _check: object = field(default=None, repr=False, compare=False)
+
+    @cached_property
+    def validity(self):
+        """The :class:`~carmkin.robot.validity.ValidityReport` of the chosen solution at
+        :data:`carmkin.world.DEFAULT_MARGIN` (joints, clearance to table and floor, table in the cone): the
+        verdict :func:`carmkin.robot.validity.check` and :func:`carmkin.qp_ik.solve` give the same configuration;
+        ``None`` for an unsolved pose. :attr:`valid` is the joint-range part of it."""
+        if self._check is None or not np.all(np.isfinite(self.q)):
+            return None
+        return self._check(self.q)
 
     @property
     def q(self) -> np.ndarray:
@@ -72,7 +84,8 @@ class IKResult:
 
     @property
     def valid(self) -> bool:
-        """The chosen branch is within the joint ranges (and reaches the pose)."""
+        """The chosen branch is within the joint ranges (and reaches the pose): the kinematic part of
+        :attr:`validity` (which adds the clearance at the default margin and the table in the cone)."""
         status = self.branches[self.chosen]
         return status.within_limits and status.reached
 

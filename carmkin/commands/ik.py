@@ -57,7 +57,8 @@ def register(parser: argparse.ArgumentParser) -> None:
 
 
 def validity_summary(system, q) -> dict:
-    """§4.4.3 validity of q (m, rad) in the command line's units: valid, reasons, nearest distance (mm)."""
+    """§4.4.3 validity of q (m, rad) at the one default margin (:data:`carmkin.world.DEFAULT_MARGIN`) in the
+    command line's units: valid, reasons, nearest distance and margin (mm)."""
     from carmkin.robot import validity
 
     report = validity.check(system, q)
@@ -68,7 +69,8 @@ def validity_summary(system, q) -> dict:
                 f"({c.distance * MM_PER_M:+.1f} mm)" for c in report.collisions]
     if not report.table_in_cone:
         reasons.append("table not in the X-ray cone")
-    return {"valid": report.valid, "reasons": reasons, "min_distance_mm": report.min_distance * MM_PER_M}
+    return {"valid": report.valid, "reasons": reasons, "min_distance_mm": report.min_distance * MM_PER_M,
+            "margin_mm": report.margin * MM_PER_M}
 
 
 def _branch_dict(system, solution, status) -> dict:
@@ -112,7 +114,7 @@ def run(args: argparse.Namespace) -> int:
               f"{'; excess ' + excess if excess else ''}")
         print(f"    joints: {format_joints(system, solution, digits=4)}")
         v = b["validity"]
-        print(f"    §4.4.3: {'valid' if v['valid'] else 'INVALID: ' + '; '.join(v['reasons'])}; "
+        print(f"    §4.4.3 at margin {v['margin_mm']:g} mm: {'valid' if v['valid'] else 'INVALID: ' + '; '.join(v['reasons'])}; "
               f"nearest part {v['min_distance_mm']:.1f} mm from table/floor")
     chosen = branches[result.chosen]["validity"]
     print(f"chosen: branch {result.chosen} ({'within' if result.valid else 'NOT within'} the joint ranges; "

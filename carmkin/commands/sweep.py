@@ -81,7 +81,7 @@ def _joint(text: str):
 
 
 def _patient(text: str | None):
-    from carmkin.robot.collision import Obstacle
+    from carmkin.world import Obstacle
 
     if text is None:
         return []

@@ -31,7 +31,7 @@ from carmkin.errors import (
 )
 from carmkin.model.bounds import MAX_LENGTH
 from carmkin.model.kinematics import check_configuration
-from carmkin.robot.collision import CollisionScene, Obstacle
+from carmkin.world import Obstacle, World
 from carmkin.transforms import check_rigid_transform, pose_error, segment_box_interval
 from carmkin.validation import MAGNITUDE_LIMIT, real_array, real_scalar, rotation
 
@@ -157,7 +157,7 @@ class PanoramaPlanner:
                 isinstance(o, Obstacle) for o in obstacles):
             raise PanoramaError(f"obstacles must be a sequence of carmkin.robot.collision.Obstacle, got {obstacles!r}")
         self.obstacles = tuple(obstacles)
-        self.scene = CollisionScene.from_system(system, self.obstacles)
+        self.scene = World(system, self.obstacles)
         self.fallback = _flag(fallback, "fallback")
         self.margin = real_scalar(margin, "margin", error=PanoramaError, low=0.0, high=MAX_LENGTH, unit="m")
 
@@ -184,7 +184,7 @@ class PanoramaPlanner:
 
         # The QP cannot change whether the beam meets the table (that depends on the pose alone): skip it
         # when the pose misses the table.
-        result = qp_ik.solve(self.system, T, q_current=q_current, scene=self.scene,
+        result = qp_ik.solve(self.system, T, q_current=q_current, world=self.scene,
                              options=qp_ik.QPIKOptions(safety_margin=self.margin),
                              accept=lambda report: report.valid, qp=fallback and pose_in_cone(self.system, T))
         if result.success:

@@ -181,3 +181,14 @@ class CArmSystem:
         from carmkin.robot.models import build_models
 
         return build_models(self.urdf())
+
+
+def require_system(system, error=None) -> None:
+    """``error`` (default :class:`~carmkin.errors.InvalidConfigurationError`) naming the argument unless
+    ``system`` is a :class:`CArmSystem` (the one check of the solvers' ``system`` argument: a junk value is
+    refused before any attribute of it is read)."""
+    if not isinstance(system, CArmSystem):
+        from carmkin.errors import InvalidConfigurationError
+
+        raise (error or InvalidConfigurationError)(
+            f"system must be a carmkin.CArmSystem (carmkin.load_preset(...)), got {type(system).__name__}")

@@ -187,7 +187,7 @@ class ParametricPatient:
     def obstacles(self, prefix: str = "patient") -> list:
         """The body as :class:`carmkin.robot.collision.Obstacle` s fixed to the table frame (names
         ``<prefix>_<segment>``)."""
-        from carmkin.robot.collision import Obstacle
+        from carmkin.world.obstacles import Obstacle
 
         T = self.pose()
         out = []

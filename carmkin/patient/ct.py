@@ -97,7 +97,7 @@ class CTPatient:
 
     def obstacles(self, prefix: str = "ct_body") -> list:
         """The boxes as :class:`carmkin.robot.collision.Obstacle` s in the table frame."""
-        from carmkin.robot.collision import Obstacle
+        from carmkin.world.obstacles import Obstacle
 
         T = self.pose()
         return [Obstacle.box(f"{prefix}_{k}", e, T[:3, :3] @ c + T[:3, 3], T[:3, :3]) for k, (c, e) in enumerate(self.boxes)]

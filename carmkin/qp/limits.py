@@ -7,7 +7,7 @@ Tournassoud: a step may close at most the fraction ``gain`` of the gap to the sa
 ``-grad d_k · dq <= gain (d_k - margin)``; a pair already inside the margin must leave it in one
 (linearised) step, ``-grad d_k · dq <= d_k - margin``. Pairs farther than ``influence_distance`` add no row
 (broad phase). ``grad d`` comes from coal's witness points and normals
-(:meth:`carmkin.robot.collision.CollisionScene.distance_jacobian`). Lengths in metres, angles in radians.
+(:meth:`carmkin.world.World.distance_jacobian`). Lengths in metres, angles in radians.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from typing import Sequence
 
 import numpy as np
 
-from carmkin.robot.collision import CollisionScene
+from carmkin.world import World
 from carmkin.robot.state import KinematicState
 
 from .options import MARGIN_TOLERANCE, QPIKError
@@ -53,22 +53,22 @@ class JointLimits:
 
 
 class CollisionAvoidance:
-    """Velocity-damper rows of the pairs of ``scene`` closer than ``influence_distance`` (m)."""
+    """Velocity-damper rows of the pairs of ``world`` closer than ``influence_distance`` (m)."""
 
-    def __init__(self, scene: CollisionScene, margin: float, gain: float, influence_distance: float) -> None:
-        self.scene, self.margin, self.gain, self.influence = scene, float(margin), float(gain), float(influence_distance)
+    def __init__(self, world: World, margin: float, gain: float, influence_distance: float) -> None:
+        self.world, self.margin, self.gain, self.influence = world, float(margin), float(gain), float(influence_distance)
 
     def __len__(self) -> int:
-        return len(self.scene)
+        return len(self.world)
 
     def inequalities(self, state: KinematicState) -> tuple[np.ndarray, np.ndarray] | None:
         """``(G (K, nv), h (K,))`` for the near pairs at ``state`` (Jacobians computed), or ``None``."""
         distances = state.distances
-        near = self.scene.proximity(distances, self.influence)
+        near = self.world.proximity(distances, self.influence)
         if not near.index.size:
             return None
         gap = near.distance - self.margin
-        return -self.scene.distance_jacobian(near, state.data.J), np.where(gap >= 0, self.gain * gap, gap)
+        return -self.world.distance_jacobian(near, state.data.J), np.where(gap >= 0, self.gain * gap, gap)
 
     def clear(self, state: KinematicState) -> bool:
         """Every pair at least the margin apart (up to :data:`MARGIN_TOLERANCE`)."""
@@ -77,4 +77,4 @@ class CollisionAvoidance:
     def near_pairs(self, distances: np.ndarray, slack: float) -> tuple[str, ...]:
         """Names ``"first/second"`` of the pairs closer than ``margin + slack``."""
         limit = self.margin + slack
-        return tuple(f"{a}/{b}" for k, (a, b) in enumerate(self.scene.pairs) if distances[k] < limit)
+        return tuple(f"{a}/{b}" for k, (a, b) in enumerate(self.world.pairs) if distances[k] < limit)

@@ -16,7 +16,7 @@ import numpy as np
 import pinocchio as pin
 
 from carmkin.errors import InvalidConfigurationError
-from carmkin.robot.collision import CollisionScene
+from carmkin.world import World
 from carmkin.robot.state import KinematicState
 
 from .backends import make_backend
@@ -36,7 +36,7 @@ INFEASIBLE_SLACK, STALL_SLACK = 1e-6, 1e-4
 
 
 class QPIK:
-    """Reusable QP IK for ``model`` with ``tasks``, an optional :class:`CollisionScene` and a QP backend.
+    """Reusable QP IK for ``model`` with ``tasks``, an optional :class:`carmkin.world.World` and a QP backend.
 
     Keeps one ``pin.Data``; change targets through the tasks' ``set_target`` and call :meth:`solve` again.
     Bounds are the model's position limits. ``backend``: a name (``None`` = the fastest installed) or a
@@ -52,7 +52,7 @@ class QPIK:
         self,
         model: pin.Model,
         tasks: Sequence[FrameTask],
-        scene: CollisionScene | None = None,
+        world: World | None = None,
         backend=None,
         options: QPIKOptions = QPIKOptions(),
         joint_weights=None,
@@ -62,14 +62,14 @@ class QPIK:
             raise QPIKError(f"the QP IK needs a model with nq == nv (vector joints); got nq={model.nq}, nv={model.nv}")
         if not tasks:
             raise QPIKError("at least one task is needed")
-        self.model, self.tasks, self.scene, self.options = model, list(tasks), scene, options
+        self.model, self.tasks, self.world, self.options = model, list(tasks), world, options
         self.data = model.createData()
         self.limits = JointLimits(model.lowerPositionLimit, model.upperPositionLimit, options.max_step, locked)
         self.lower, self.upper, self.free = self.limits.lower, self.limits.upper, self.limits.free
         self.weights = np.ones(model.nv) if joint_weights is None else check_weights(joint_weights, model.nv)
-        self.avoidance = (CollisionAvoidance(scene, options.safety_margin, options.collision_gain,
-                                             options.influence_distance) if scene is not None and len(scene) else None)
-        rows = (len(scene) if scene else 0) + sum(2 for t in self.tasks if isinstance(t, AimTask))
+        self.avoidance = (CollisionAvoidance(world, options.safety_margin, options.collision_gain,
+                                             options.influence_distance) if world is not None and len(world) else None)
+        rows = (len(world) if world else 0) + sum(2 for t in self.tasks if isinstance(t, AimTask))
         if backend is None or isinstance(backend, str):
             backend = make_backend(backend, model.nv, rows)
         elif getattr(backend, "max_rows", rows) < rows:
@@ -82,8 +82,8 @@ class QPIK:
         self.last_state: KinematicState | None = None
 
     def state(self, q: np.ndarray) -> KinematicState:
-        """The kinematic state at ``q`` with Jacobians and this solver's scene (reuses one ``pin.Data``)."""
-        return KinematicState(self.model, q, self.scene, jacobians=True, data=self.data)
+        """The kinematic state at ``q`` with Jacobians and this solver's world (reuses one ``pin.Data``)."""
+        return KinematicState(self.model, q, self.world, jacobians=True, data=self.data)
 
     def errors(self, state: KinematicState) -> tuple[float, float, bool]:
         """(largest position error m, largest angle error rad, every task within tolerance) at ``state``."""

@@ -9,6 +9,7 @@ import numpy as np
 from carmkin.errors import (
     QPIKError,  # noqa: F401 (defined there, raised here)
 )
+from carmkin.world.tolerances import DEFAULT_MARGIN
 
 #: A run counts as clear of obstacles when every pair is at least ``safety_margin - MARGIN_TOLERANCE`` apart (m).
 MARGIN_TOLERANCE = 1e-6
@@ -24,7 +25,7 @@ class QPIKOptions:
 
     position_tolerance (m), angle_tolerance (rad): convergence test on every task. max_iterations.
     damping, error_damping: ``lambda = damping + error_damping * E``. max_step: bound on each |dq_i|
-    (m or rad) per iteration. safety_margin (m): minimum distance kept between collision pairs.
+    (m or rad) per iteration. safety_margin (m): minimum distance kept between collision pairs (default :data:`carmkin.world.DEFAULT_MARGIN`).
     influence_distance (m): pairs farther than this add no constraint (broad phase). collision_gain in
     (0, 1]: fraction of the gap to the margin one step may close. stall_step: a step below this
     (inf-norm) without convergence stops the iteration as stalled.
@@ -36,7 +37,7 @@ class QPIKOptions:
     damping: float = 1e-10
     error_damping: float = 1e-3
     max_step: float = 0.3
-    safety_margin: float = 0.01
+    safety_margin: float = DEFAULT_MARGIN
     influence_distance: float = 0.1
     collision_gain: float = 0.5
     stall_step: float = 1e-12

@@ -2,8 +2,8 @@
 building the problem from solving it).
 
 :class:`PreparedIK` holds what does not change from one target to the next — the system's Pinocchio model,
-the collision scene with the obstacles (e.g. the patient, a list of
-:class:`~carmkin.robot.collision.Obstacle`), its bounding-box broad phase (:mod:`carmkin.robot.clearance`),
+the collision world with the obstacles (:class:`carmkin.world.World`; e.g. the patient, a list of
+:class:`~carmkin.robot.collision.Obstacle`),
 the options, the QP backend and one QP IK per kind of target — and :meth:`PreparedIK.solve` runs the steps
 of :func:`carmkin.qp_ik.solve` (closed form where it applies, then the QP from seeds) against them. Every
 validity it reports is computed at ``options.safety_margin`` (and says so). :meth:`PreparedIK.clearance`
@@ -14,7 +14,6 @@ distances that decide. Lengths in metres, angles in radians, poses in the table 
 from __future__ import annotations
 
 import dataclasses
-import functools
 import importlib
 import math
 import weakref
@@ -26,8 +25,8 @@ import pinocchio as pin
 from carmkin.analytic.poses import pose_rows
 from carmkin.errors import CarmkinError, InvalidConfigurationError
 from carmkin.robot import validity
-from carmkin.robot.clearance import BOUND_SLACK, BoundedScene
-from carmkin.robot.collision import CollisionScene, Obstacle
+from carmkin.world.tolerances import BOUND_SLACK
+from carmkin.world import Obstacle, World
 from carmkin.validation import JOINT_VALUE_LIMIT, real_array, real_scalar
 
 from .backends import BACKENDS, make_backend
@@ -62,7 +61,7 @@ def _default_accept(report) -> bool:
 class PreparedIK:
     """The IK problem of ``system`` built once: see the module docstring and :func:`carmkin.qp_ik.prepare`.
 
-    ``obstacles``: bodies fixed in the table frame (a list of :class:`Obstacle`), or a prebuilt ``scene``
+    ``obstacles``: bodies fixed in the table frame (a list of :class:`Obstacle`), or a prebuilt ``world``
     holding them; ``options`` (:class:`QPIKOptions`, the margin included); ``backend``: a QP backend name
     or object; ``accept(report) -> bool`` on the :class:`~carmkin.robot.validity.ValidityReport` at the
     margin (default: joints in range and no pair inside the margin); ``redundancy`` (:class:`Redundancy`:
@@ -73,7 +72,7 @@ class PreparedIK:
     def __init__(self, system, obstacles: Sequence[Obstacle] = (), options: QPIKOptions = QPIKOptions(), *,
                  backend=None, accept: Callable[[object], bool] | None = None,
                  redundancy: Redundancy = Redundancy(), search: SearchOptions = SearchOptions(),
-                 scene: CollisionScene | None = None) -> None:
+                 world: World | None = None) -> None:
         validity.require_system(system, QPIKError)
         for name, value, kind in (("options", options, QPIKOptions), ("redundancy", redundancy, Redundancy),
                                   ("search", search, SearchOptions)):
@@ -81,18 +80,18 @@ class PreparedIK:
                 raise QPIKError(f"{name} must be a carmkin.qp_ik.{kind.__name__}, got {value!r}")
         if accept is not None and not callable(accept):
             raise QPIKError(f"accept must be a function of the validity report, got {accept!r}")
-        if scene is not None and not isinstance(scene, CollisionScene):
-            raise QPIKError(f"scene must be a carmkin.robot.collision.CollisionScene, got {scene!r}")
+        if world is not None and not isinstance(world, World):
+            raise QPIKError(f"world must be a carmkin.world.World, got {world!r}")
         obstacles = obstacle_list(obstacles)
         if not (backend is None or isinstance(backend, str) or callable(getattr(backend, "solve", None))):
             raise QPIKError(f"backend must be a QP backend name ({', '.join(BACKENDS)}), a backend object or None, "
                             f"got {backend!r}")
-        if scene is not None and obstacles:
-            raise QPIKError("give the obstacles either in the scene or as obstacles, not both")
+        if world is not None and obstacles:
+            raise QPIKError("give the obstacles either in the world or as obstacles, not both")
         self._system = system
         self.options, self.search, self.redundancy = options, search, redundancy
         self.model = model = system.pinocchio()[0]
-        self.scene = scene if scene is not None else CollisionScene.from_system(system, obstacles)
+        self.world = world if world is not None else World(system, obstacles)
         self.accept = _default_accept if accept is None else accept
         self.lower, self.upper = np.array(model.lowerPositionLimit), np.array(model.upperPositionLimit)
         self._bounds = (system.lower.tolist(), system.upper.tolist())
@@ -101,24 +100,19 @@ class PreparedIK:
         self.weights_given = redundancy.weights is not None or redundancy.prefer is not None
         self._middle = 0.5 * (self.lower + self.upper)  # the reference without q_current
         self._middle[self.locked] = 0.0
-        rows = len(self.scene) + 2  # the collision rows and the two distance rows of an AimTask
+        rows = len(self.world) + 2  # the collision rows and the two distance rows of an AimTask
         self.backend = make_backend(backend, model.nv, rows) if backend is None or isinstance(backend, str) else backend
         self.data = model.createData()
         self._source = model.getFrameId(SOURCE_FRAME)
         self._solvers: dict[type, QPIK] = {}
-        self._pairs = len(self.scene) > 0
-        self._geometry = pin.GeometryData(self.scene.geometry_model)  # this solver's own collision data
+        self._pairs = len(self.world) > 0
+        self._geometry = pin.GeometryData(self.world.geometry_model)  # this solver's own collision data
         for request in self._geometry.collisionRequests:
             request.security_margin = options.safety_margin + BOUND_SLACK
             request.enable_contact = False
         for request in self._geometry.distanceRequests:
             request.enable_signed_distance = True
         self.margin = options.safety_margin
-
-    @functools.cached_property
-    def bounded(self) -> BoundedScene:
-        """The broad phase of the scene (:mod:`carmkin.robot.clearance`), built on first use."""
-        return BoundedScene(self.scene, self.system)
 
     @property
     def system(self):
@@ -130,6 +124,7 @@ class PreparedIK:
         """Keep only a weak reference to the system (for caches keyed by the system: see
         :mod:`carmkin.model.per_system`); returns ``self``."""
         self._system = weakref.ref(self.system)
+        self.world.hold_weakly()
         return self
 
     # --- validity -----------------------------------------------------------------------------------------
@@ -149,16 +144,16 @@ class PreparedIK:
         # security margin, plus a slack so that no pair coal's distance puts below the margin goes unflagged);
         # coal's distance decides each flagged pair; the exact smallest distance is computed when read.
         model, data, geometry = self.model, self.data, self._geometry
-        if self._pairs and pin.computeCollisions(model, data, self.scene.geometry_model, geometry, q, False):
+        if self._pairs and pin.computeCollisions(model, data, self.world.geometry_model, geometry, q, False):
             flagged = [k for k, r in enumerate(geometry.collisionResults) if r.isCollision()]
-            distances = [pin.computeDistance(self.scene.geometry_model, geometry, k).min_distance for k in flagged]
+            distances = [pin.computeDistance(self.world.geometry_model, geometry, k).min_distance for k in flagged]
             close = [(k, d) for k, d in zip(flagged, distances) if d < self.margin]
             pairs, distances = [k for k, _ in close], [d for _, d in close]
         else:
             pin.forwardKinematics(model, data, q)
             pairs, distances = [], []
         pin.updateFramePlacement(model, data, self._source)
-        return validity.report(self.system, q, self.scene, pairs, distances, lambda: self.bounded.min_distance(q)[0],
+        return validity.report(self.system, q, self.world, pairs, distances, lambda: float(self.world.clearance(q)[0]),
                                data.oMf[self._source].homogeneous, self.margin, self._bounds)
 
     def clearance(self, qs, exact_below: float = np.inf) -> np.ndarray:
@@ -167,13 +162,13 @@ class PreparedIK:
         Exact (the coal distance of the nearest pair; bounds for every pair at once, coal only for the pairs
         whose bound decides) wherever it is below ``exact_below``; elsewhere a lower bound that is
         itself at least ``exact_below`` (pass the margin to learn "clear of it or not" at the cost of the broad
-        phase). See :mod:`carmkin.robot.clearance` for why it is exact.
+        phase). See :mod:`carmkin.world.bounds` for why it is exact.
         """
         qs = real_array(qs, "qs", (None, self.model.nq), error=InvalidConfigurationError, limit=JOINT_VALUE_LIMIT,
                         unit="m, rad")
         if not (isinstance(exact_below, float) and exact_below == math.inf):  # inf (the default): exact everywhere
             exact_below = real_scalar(exact_below, "exact_below", error=QPIKError, limit=None, unit="m")
-        return self.bounded.min_distance(qs, exact_below)
+        return self.world.clearance(qs, exact_below)
 
     def reachable(self, qs) -> np.ndarray:
         """(N,) bool: joints in range and every pair at least the margin apart, for ``qs`` (N, nq): the test of
@@ -184,7 +179,7 @@ class PreparedIK:
         out = validity.within_ranges(self.system, qs)
         if not self._pairs:
             return out
-        model, data, geometry, pairs = self.model, self.data, self._geometry, self.scene.geometry_model
+        model, data, geometry, pairs = self.model, self.data, self._geometry, self.world.geometry_model
         for i in np.flatnonzero(out).tolist():
             if pin.computeCollisions(model, data, pairs, geometry, qs[i], False):
                 out[i] = all(pin.computeDistance(pairs, geometry, k).min_distance >= self.margin
@@ -195,7 +190,7 @@ class PreparedIK:
     def _qp(self, task_kind: type, target) -> QPIK:
         solver = self._solvers.get(task_kind)
         if solver is None:
-            solver = QPIK(self.model, [make_task(self.model, target)], self.scene, backend=self.backend,
+            solver = QPIK(self.model, [make_task(self.model, target)], self.world, backend=self.backend,
                           options=self.options, joint_weights=self.weights, locked=self.locked)
             self._solvers[task_kind] = solver
         else:

@@ -32,7 +32,7 @@ import numpy as np
 
 from carmkin.errors import CarmkinError
 
-from .guidance import GuidanceError, GuidanceOptions, Guide, sweep
+from .guidance import GuidanceError, GuidanceOptions, Guide
 from .model import model_from_pose
 from .pose import PoseError
 from .world import OperatorModel, SimulationError, World, system_mount
@@ -153,7 +153,7 @@ def sample_reference(world: World, config: ExperimentConfig, rng: np.random.Gene
     low, high = _joint_ranges(system, config)
     for _ in range(1000):
         q = rng.uniform(low, high)
-        report = validity.check(system, q, margin=2 * config.guidance.goal_margin, scene=scene)
+        report = validity.check(system, q, margin=2 * config.guidance.goal_margin, world=scene)
         if report.valid and len(world.view(system.fk(q))) >= MIN_VISIBLE_MARKERS:
             return q
     raise SimulationError("no valid reference configuration found in 1000 draws: widen reference_ranges")
@@ -176,12 +176,13 @@ def run_task(world: World, config: ExperimentConfig, rng: np.random.Generator, s
     """One repositioning task (see the module docstring). ``on_step(step, q_true, q_next, truth)``, when
     given, is called after each guidance update with the :class:`~.guidance.GuidanceStep`, the true joints
     before and after the operator's move (``q_next`` is ``None`` when done or blocked) and the true path's
-    :class:`~.guidance.Sweep` (``None`` likewise)."""
+    swept clearance, :class:`carmkin.world.Swept` (``None`` likewise). ``scene``: the collision world of
+    ``world.system`` (:class:`carmkin.world.World`), when the caller holds it."""
     from carmkin.imaging import project
-    from carmkin.robot.collision import CollisionScene
+    from carmkin.world import World as CollisionWorld
 
     system = world.system
-    scene = scene if scene is not None else CollisionScene.from_system(system)
+    scene = scene if scene is not None else CollisionWorld(system)
     q_ref = sample_reference(world, config, rng, scene)
     markers = xray_markers(world, q_ref, rng)
     q = start_configuration(world, config, q_ref, rng)
@@ -213,14 +214,16 @@ def run_task(world: World, config: ExperimentConfig, rng: np.random.Generator, s
             result.reason = f"step {result.steps}: {step.blocked}"
             break
         q_next = config.operator.execute(system, q, step.joint, step.move, rng)
-        truth = sweep(system, scene, q, q_next, 0.0, config.guidance.lever_arm)
+        truth = scene.swept(q, q_next, margin=0.0)
         if on_step is not None:
             on_step(step, q, q_next, truth)
         result.min_clearance = min(result.min_clearance, truth.min_distance)
         result.moves.append((system.joint_names[step.joint], step.move))
         result.steps += 1
         if not truth.clear:
-            result.reason = f"collision moving {system.joint_names[step.joint]}: {truth.reason}"
+            a, b = scene.link_pairs()[truth.contact_pair if truth.contact_pair is not None else truth.pair]
+            result.reason = (f"collision moving {system.joint_names[step.joint]}: {a} within "
+                             f"{truth.min_distance * 1e3:.1f} mm of {b}")
             break
         q = q_next
     T_ref, T_final = system.fk(q_ref), system.fk(q)
@@ -248,13 +251,13 @@ def make_world(system, config: ExperimentConfig, rng: np.random.Generator) -> Wo
 def run_experiment(system, config: ExperimentConfig = ExperimentConfig(), tasks: int = 10, seed: int = 0,
                    progress=None) -> list[TaskResult]:
     """``tasks`` repositioning tasks in one room (numpy seed ``seed``); ``progress(i)`` after each."""
-    from carmkin.robot.collision import CollisionScene
+    from carmkin.world import World
 
     if int(tasks) < 1:
         raise SimulationError(f"tasks must be >= 1, got {tasks}")
     rng = np.random.default_rng(seed)
     world = make_world(system, config, rng)
-    scene = CollisionScene.from_system(system)
+    scene = World(system)
     results = []
     for i in range(int(tasks)):
         results.append(run_task(world, config, rng, scene))

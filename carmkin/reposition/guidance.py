@@ -12,11 +12,9 @@ translational and 0.5° for rotational joints).
 
 A manual C-arm is moved one joint at a time: the next joint is the first in :attr:`GuidanceOptions.order`
 with a remaining move whose whole path (that joint alone, from the current to the goal value) stays at
-least :attr:`GuidanceOptions.path_clearance` away from every collision pair. The path is checked by
-conservative advancement (:func:`sweep`): a point of any body moves at most ``lever_arm`` metres per radian
-of a revolute joint (1 m per metre of a prismatic one), so from a sample at distance ``d`` the next sample
-may be ``(d − clearance) / speed`` further on without any pair coming closer than ``clearance`` in between
-— a guarantee for the continuous path, not only for the samples. Lengths in m, angles in rad.
+least :attr:`GuidanceOptions.path_clearance` away from every collision pair, certified by the world's
+conservative advancement (:meth:`carmkin.world.World.swept`: per-pair chain speed bounds, a guarantee for
+the continuous path, not only for the samples). Lengths in m, angles in rad.
 
 **Uncertainty.** A measurement may be a :class:`~.pose.PoseEstimate` expressed in the table frame (e.g.
 :meth:`World.measure_estimate`) rather than a bare 4×4 pose. Its covariance is propagated to the joint
@@ -42,6 +40,8 @@ from carmkin.errors import (
 )
 
 from carmkin.validation import real_array, real_scalar, rigid_transform
+from carmkin.world import DEFAULT_MARGIN, DEFAULT_ORDER, DEFAULT_PATH_CLEARANCE, Swept
+from carmkin.world import World as CollisionWorld
 
 from . import _checks
 from .model import PROPAGATION_STEP, frozen_table_system
@@ -50,10 +50,6 @@ from .pose import PoseEstimate
 #: The seed's stop thresholds (§4.6.2): remaining moves below 2 mm (translational) and 0.5° (rotational).
 SEED_TRANSLATION_THRESHOLD = 0.002
 SEED_ROTATION_THRESHOLD = math.radians(0.5)
-#: Conservative advancement gives up (path "blocked") after this many samples on one move.
-MAX_SWEEP_SAMPLES = 2000
-#: Manual move order, first to last; joints not named (e.g. a motorized table's) come after, in q order.
-DEFAULT_ORDER = ("table_translation", "vertical", "horizontal", "wigwag", "angular", "orbital")
 #: Default of :attr:`GuidanceOptions.stop_sigmas`: 0, the seed's rule on the readings. Measured on 200
 #: simulated tasks with the estimates passed (seed 2): with 1 (the true remaining below the threshold with
 #: ~84 %) only 77.5 % converged within 40 updates, for no smaller error (6.04 mm against 5.90 mm): the error
@@ -72,8 +68,7 @@ class GuidanceOptions:
     ``translation_threshold`` / ``rotation_threshold``: stop when every remaining prismatic / revolute move
     is below them. ``goal_margin``: clearance of the goal configuration (the IK's safety margin).
     ``path_clearance``: clearance kept along every move (< ``goal_margin``, so the goal's neighbourhood is
-    reachable). ``lever_arm``: bound on the distance of any collision body from any rotation axis (m; 2.5 m
-    covers the Siremobile preset, see ``tests/reposition/test_guidance.py``). ``order``: joint names in
+    reachable). ``order``: joint names in
     the order the operator moves them (default :data:`DEFAULT_ORDER`). ``stop_sigmas``: how many standard
     deviations of the remaining move must fit under the threshold before a joint counts as arrived
     (:data:`STOP_SIGMAS`; 0: the seed's rule on the readings). ``max_sd_fraction``: arrival is confirmed
@@ -82,19 +77,18 @@ class GuidanceOptions:
 
     translation_threshold: float = SEED_TRANSLATION_THRESHOLD
     rotation_threshold: float = SEED_ROTATION_THRESHOLD
-    goal_margin: float = 0.01
-    path_clearance: float = 0.005
-    lever_arm: float = 2.5
+    goal_margin: float = DEFAULT_MARGIN
+    path_clearance: float = DEFAULT_PATH_CLEARANCE
     order: tuple[str, ...] = DEFAULT_ORDER
     stop_sigmas: float = STOP_SIGMAS
     max_sd_fraction: float = MAX_SD_FRACTION
 
     def __post_init__(self) -> None:
-        for name in ("translation_threshold", "rotation_threshold", "goal_margin", "lever_arm", "path_clearance",
+        for name in ("translation_threshold", "rotation_threshold", "goal_margin", "path_clearance",
                      "stop_sigmas", "max_sd_fraction"):
             real_scalar(getattr(self, name), f"GuidanceOptions.{name}", error=GuidanceError,
                         low=0.0 if name in ("path_clearance", "stop_sigmas") else None)
-        for name in ("translation_threshold", "rotation_threshold", "goal_margin", "lever_arm", "max_sd_fraction"):
+        for name in ("translation_threshold", "rotation_threshold", "goal_margin", "max_sd_fraction"):
             value = getattr(self, name)
             if not value > 0:
                 raise GuidanceError(f"GuidanceOptions.{name} must be finite and > 0, got {value}")
@@ -116,52 +110,6 @@ class GuidanceOptions:
                                 f"{', '.join(system.joint_names)}")
         named = [system.joint_names.index(n) for n in self.order]
         return named + [k for k in range(system.nq) if k not in named]
-
-
-@dataclass(frozen=True)
-class Sweep:
-    """Result of :func:`sweep`: ``clear`` (the whole path keeps the clearance), ``min_distance`` over the
-    samples (m), ``samples`` checked, ``reason`` when not clear."""
-
-    clear: bool
-    min_distance: float
-    samples: int
-    reason: str | None = None
-
-
-def sweep(system, scene, q_from, q_to, clearance: float, lever_arm: float) -> Sweep:
-    """Check the straight joint-space path ``q_from → q_to`` (nq,) by conservative advancement.
-
-    ``clear`` guarantees that every collision pair of ``scene`` stays at least ``clearance`` (m) apart along
-    the continuous path and that the joints stay in range. A body point moves at most
-    ``Σ_j L_j |Δq_j|`` per unit of the path parameter (``L_j`` = 1 for prismatic joints, ``lever_arm`` for
-    revolute ones).
-    """
-    from carmkin.robot import validity
-    from carmkin.robot.collision import CollisionScene
-
-    system = _system(system, "system")
-    if not isinstance(scene, CollisionScene):
-        raise GuidanceError(f"scene must be a CollisionScene, got {type(scene).__name__}")
-    q_from, q_to = _joints(system, q_from, "q_from"), _joints(system, q_to, "q_to")
-    clearance = real_scalar(clearance, "clearance", error=GuidanceError, low=0.0, unit="m")
-    lever_arm = real_scalar(lever_arm, "lever_arm", error=GuidanceError, low=0.0, unit="m")
-    speed = float(np.sum(np.where(system.prismatic, 1.0, lever_arm) * np.abs(q_to - q_from)))
-    t, samples, smallest = 0.0, 0, np.inf
-    while samples < MAX_SWEEP_SAMPLES:
-        q = q_from + t * (q_to - q_from)
-        report = validity.check(system, q, scene=scene)
-        samples += 1
-        smallest = min(smallest, report.min_distance)
-        if report.joints:
-            return Sweep(False, smallest, samples, "; ".join(report.reasons[:1]))
-        if report.min_distance < clearance:
-            return Sweep(False, smallest, samples, f"clearance {report.min_distance * 1e3:.1f} mm < "
-                         f"{clearance * 1e3:.1f} mm at {100 * t:.0f} % of the move")
-        if t >= 1.0 or speed == 0.0:
-            return Sweep(True, smallest, samples)
-        t = min(1.0, t + max((report.min_distance - clearance) / speed, 1e-12))
-    return Sweep(False, smallest, samples, f"unresolved after {MAX_SWEEP_SAMPLES} samples (grazing contact)")
 
 
 def _system(value, name: str):
@@ -266,7 +214,7 @@ class GuidanceStep:
     the estimates' covariances; zero when the measurements were bare poses); ``done``: every remaining move
     plus ``stop_sigmas`` sd below its threshold, on a well-conditioned estimate; ``joint``: index of the
     joint to move next (``None`` when done or blocked); ``move``: its signed move (m or rad); ``sweep``: the
-    path check of that move; ``blocked``: why no joint can move, or why arrival cannot be confirmed
+    path check of that move (:class:`carmkin.world.Swept`); ``blocked``: why no joint can move, or why arrival cannot be confirmed
     (``None`` otherwise); ``rms_px`` and ``ill_conditioned``: of the measurement (NaN / False for a bare pose).
     """
 
@@ -275,7 +223,7 @@ class GuidanceStep:
     done: bool
     joint: int | None = None
     move: float = 0.0
-    sweep: Sweep | None = None
+    sweep: Swept | None = None
     blocked: str | None = None
     skipped: tuple = field(default=())
     sd: np.ndarray | None = None
@@ -295,7 +243,6 @@ class Guide:
     def __init__(self, model, T_reference, q_start, options: GuidanceOptions = GuidanceOptions(),
                  obstacles=()) -> None:
         from carmkin import qp_ik
-        from carmkin.robot.collision import CollisionScene
 
         model = _system(model, "model")
         if not isinstance(options, GuidanceOptions):
@@ -305,8 +252,8 @@ class Guide:
         self.model, self.options = model, options
         self.thresholds = options.thresholds(model)
         self.order = options.move_order(model)
-        self.scene = CollisionScene.from_system(model, obstacles)
-        result = qp_ik.solve(model, T_reference, q_current=q_start, obstacles=obstacles,
+        self.world = CollisionWorld(model, obstacles)
+        result = qp_ik.solve(model, T_reference, q_current=q_start, world=self.world,
                              options=qp_ik.QPIKOptions(safety_margin=options.goal_margin))
         if not result.success:
             raise GuidanceError(f"the reference pose has no collision-free solution on the model: {result.reason}")
@@ -352,13 +299,22 @@ class Guide:
                 continue
             target = q.copy()
             target[j] = self.q_goal[j]
-            check = sweep(self.model, self.scene, q, target, self.options.path_clearance, self.options.lever_arm)
+            check = self.world.swept(q, target, margin=self.options.path_clearance, stop_at_contact=True)
             if check.clear:
                 return GuidanceStep(q, remaining, False, j, float(remaining[j]), check, skipped=tuple(skipped), **info)
-            skipped.append((self.model.joint_names[j], check.reason))
+            skipped.append((self.model.joint_names[j], _contact(self.world, check)))
         reason = "; ".join(f"{name}: {why}" for name, why in skipped)
         return GuidanceStep(q, remaining, False, blocked=f"no joint can move all the way: {reason}",
                             skipped=tuple(skipped), **info)
+
+
+def _contact(world, check: Swept) -> str:
+    """Why a move is not clear, for people (mm, % of the move)."""
+    if check.contact_t is None:
+        return f"not certified after {check.samples} distance samples (grazing contact)"
+    a, b = world.link_pairs()[check.contact_pair]
+    return (f"{a} comes within {check.contact_distance * 1e3:.1f} mm of {b} (< {check.margin * 1e3:.1f} mm) at "
+            f"{100 * check.contact_t:.0f} % of the move")
 
 
 def _amount(system, j: int, value: float) -> str:

@@ -22,16 +22,16 @@ SOURCE_FRAME = "xray_source"
 class KinematicState:
     """Kinematics of ``model`` at ``q`` (nq,).
 
-    ``scene``: an optional :class:`carmkin.robot.collision.CollisionScene` of the same model, used for
+    ``world``: an optional :class:`carmkin.world.World` of the same model, used for
     :attr:`distances`. ``jacobians``: also compute the joint Jacobians (``data.J``, world frame), as the QP
     step needs. ``data``: reuse this ``pin.Data`` (it is overwritten) instead of allocating one.
     """
 
-    def __init__(self, model: pin.Model, q, scene=None, jacobians: bool = False, data: pin.Data | None = None):
+    def __init__(self, model: pin.Model, q, world=None, jacobians: bool = False, data: pin.Data | None = None):
         q = np.asarray(q, dtype=float)
         if q.shape != (model.nq,) or not np.all(np.isfinite(q)):
             raise InvalidConfigurationError(f"q must be a finite vector of shape ({model.nq},), got {q.shape}")
-        self.model, self.q, self.scene = model, q, scene
+        self.model, self.q, self.world = model, q, world
         self.data = data if data is not None else model.createData()
         if jacobians:
             pin.computeJointJacobians(model, self.data, q)
@@ -43,13 +43,13 @@ class KinematicState:
 
     @property
     def distances(self) -> np.ndarray:
-        """Signed distance (m) of every pair of ``scene`` (empty without a scene), computed once.
+        """Signed distance (m) of every pair of ``world`` (empty without a world), computed once.
 
-        The scene's ``geometry_data`` then holds this state's witness points (for
-        :meth:`~carmkin.robot.collision.CollisionScene.proximity`) until another state computes its distances.
+        The world's ``geometry_data`` then holds this state's witness points (for
+        :meth:`carmkin.world.World.proximity`) until another state computes its distances.
         """
         if self._distances is None:
-            self._distances = np.zeros(0) if self.scene is None or not len(self.scene) else self.scene.distances(self.data)
+            self._distances = np.zeros(0) if self.world is None or not len(self.world) else self.world.distances(self.data)
         return self._distances
 
     @property

@@ -5,8 +5,10 @@ top (or an obstacle, or the floor), or when the table is not within the X-ray co
 the table is "within the cone" when the principal axis meets the table-top box; here the axis is taken as
 the segment from the source centre to the detector plane (the beam does not extend past the detector).
 Collisions use the oriented boxes of the collision model with coal (the dissertation used the separating
-axis test on the same OBBs) and the pair list of :mod:`carmkin.robot.collision`. Lengths in metres, angles in
-radians, all in the table frame 0.
+axis test on the same OBBs) in the one world, :class:`carmkin.world.World`, and its pair list. A pair closer
+than the margin (default :data:`carmkin.world.DEFAULT_MARGIN`, the one margin of every planner) is a
+collision; every report says at which margin it was made. Lengths in metres, angles in radians, all in the
+table frame 0.
 """
 
 from __future__ import annotations
@@ -18,10 +20,11 @@ import numpy as np
 
 from carmkin.errors import InvalidConfigurationError
 from carmkin.model.params import JOINT_RANGE_TOLERANCE
+from carmkin.model.system import require_system  # noqa: F401 (the solvers' one check of ``system``)
 from carmkin.transforms import segment_hits_box
 from carmkin.validation import JOINT_VALUE_LIMIT, real_array, real_scalar
+from carmkin.world import DEFAULT_MARGIN, Obstacle, World, link_of
 
-from .collision import CollisionScene, Obstacle, link_of
 from .state import KinematicState
 
 
@@ -130,15 +133,6 @@ class ValidityReport:
         return f"valid {at}" if self.valid else f"invalid {at}: " + "; ".join(self.reasons)
 
 
-def require_system(system, error=InvalidConfigurationError) -> None:
-    """``error`` naming the argument unless ``system`` is a :class:`carmkin.CArmSystem` (the one check of the
-    solvers' ``system`` argument: a junk value is refused before any attribute of it is read)."""
-    from carmkin.model.system import CArmSystem
-
-    if not isinstance(system, CArmSystem):
-        raise error(f"system must be a carmkin.CArmSystem (carmkin.load_preset(...)), got {type(system).__name__}")
-
-
 def pose_in_cone(system, T) -> bool:
     """Whether the principal axis of the source pose ``T`` (4, 4, frame 0), from the source centre to the
     detector plane, meets the table-top box. It depends on the pose alone, not on the joints reaching it."""
@@ -156,32 +150,34 @@ def check(
     system,
     q,
     obstacles: Sequence[Obstacle] = (),
-    margin: float = 0.0,
-    scene: CollisionScene | None = None,
+    margin: float = DEFAULT_MARGIN,
+    world: World | None = None,
     state: KinematicState | None = None,
 ) -> ValidityReport:
     """Report every violated condition of configuration ``q`` (nq,) of ``system``.
 
-    ``margin`` (m): pairs closer than it count as collisions (0 = only intersecting pairs). Pass a
-    prebuilt ``scene`` (from :meth:`CollisionScene.from_system`, holding the obstacles) to avoid
-    rebuilding it per call; ``obstacles`` and ``scene`` together are an error. ``state``: the
-    :class:`~carmkin.robot.state.KinematicState` of ``q`` with that scene, when the caller has it already
-    (one forward-kinematics pass per configuration).
+    ``margin`` (m, default :data:`carmkin.world.DEFAULT_MARGIN`): pairs closer than it count as collisions
+    (0 = only intersecting pairs). Pass a prebuilt ``world`` (:class:`carmkin.world.World`, holding the
+    obstacles) to avoid rebuilding it per call; ``obstacles`` and ``world`` together are an error.
+    ``state``: the :class:`~carmkin.robot.state.KinematicState` of ``q`` with that world, when the caller has
+    it already (one forward-kinematics pass per configuration).
     """
     require_system(system)
     model = system.pinocchio()[0]
     q = real_array(q, "q", (model.nq,), error=InvalidConfigurationError, limit=JOINT_VALUE_LIMIT, unit="m, rad")
     margin = real_scalar(margin, "margin", error=InvalidConfigurationError, low=0.0, unit="m")
-    if scene is not None and obstacles:
-        raise InvalidConfigurationError("give the obstacles either in the scene or as obstacles, not both")
+    if world is not None and obstacles:
+        raise InvalidConfigurationError("give the obstacles either in the world or as obstacles, not both")
+    if world is not None and not isinstance(world, World):
+        raise InvalidConfigurationError(f"world must be a carmkin.world.World, got {type(world).__name__}")
     if state is None:
-        scene = scene if scene is not None else CollisionScene.from_system(system, obstacles)
-        state = KinematicState(model, q, scene)
+        world = world if world is not None else World(system, obstacles)
+        state = KinematicState(model, q, world)
     elif not np.array_equal(state.q, q):
         raise InvalidConfigurationError("the kinematic state given to check() belongs to another configuration")
     distances = state.distances
     pairs = np.flatnonzero(distances < margin)
-    return report(system, q, state.scene, pairs, distances[pairs], state.min_distance, state.source_pose, margin)
+    return report(system, q, state.world, pairs, distances[pairs], state.min_distance, state.source_pose, margin)
 
 
 def joint_violations(system, q: np.ndarray, bounds=None) -> tuple[JointViolation, ...]:
@@ -203,13 +199,13 @@ def within_ranges(system, qs: np.ndarray) -> np.ndarray:
     return np.all((qs >= system.lower - tolerance) & (qs <= system.upper + tolerance), axis=1)
 
 
-def report(system, q: np.ndarray, scene: CollisionScene, pairs, distances, min_distance,
+def report(system, q: np.ndarray, world: World, pairs, distances, min_distance,
            source_pose: np.ndarray, margin: float, bounds=None) -> ValidityReport:
-    """The report of ``q`` from its parts: ``pairs`` (indices into ``scene.pairs``) closer than ``margin``
+    """The report of ``q`` from its parts: ``pairs`` (indices into ``world.pairs``) closer than ``margin``
     with their ``distances`` (m), the smallest distance over all pairs (a float, or a function giving it on
     first read), and the source pose (4, 4);
     ``bounds`` as in :func:`joint_violations`."""
-    collisions = tuple(Contact(scene.pairs[k][0], scene.pairs[k][1], float(d))
+    collisions = tuple(Contact(world.pairs[k][0], world.pairs[k][1], float(d))
                        for k, d in zip(np.asarray(pairs).tolist(), np.asarray(distances).tolist())) if len(pairs) else ()
     return ValidityReport(
         q=q,

@@ -40,7 +40,7 @@ from carmkin.model.params import CARM_JOINT_NAMES
 from carmkin.model.system import CArmSystem
 from carmkin.qp_ik import AxisTarget, QPIKOptions, make_task, solve
 from carmkin.robot import validity
-from carmkin.robot.collision import CollisionScene
+from carmkin.world import World
 from carmkin.robot.state import KinematicState
 from carmkin.studies.reach_bound import cannot_reach
 from carmkin.transforms import inverse
@@ -77,7 +77,7 @@ def desired_configurations(system: CArmSystem, n: int, seed: int = 0, margin: fl
     if int(n) < 1:
         raise TableWorkspaceError(f"n must be >= 1, got {n}")
     rng = np.random.default_rng(seed)
-    scene = CollisionScene.from_system(system)
+    scene = World(system)
     out = []
     while len(out) < n:
         q = rng.uniform(system.lower, system.upper)
@@ -138,12 +138,12 @@ def _branch_reaches(system: CArmSystem, target: AxisTarget, q: np.ndarray, optio
     state = KinematicState(model, q, _scene(system))
     if not make_task(model, target).errors(state.data, options.position_tolerance, options.angle_tolerance).satisfied:
         return False
-    return validity.check(system, q, margin=options.safety_margin, scene=state.scene, state=state).reachable
+    return validity.check(system, q, margin=options.safety_margin, world=state.world, state=state).reachable
 
 
 @functools.lru_cache(maxsize=4)
-def _scene(system: CArmSystem) -> CollisionScene:
-    return CollisionScene.from_system(system)
+def _scene(system: CArmSystem) -> World:
+    return World(system)
 
 
 def nested_in(model: str) -> tuple[str, ...]:

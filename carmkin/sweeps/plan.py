@@ -14,11 +14,10 @@ import numpy as np
 from carmkin.errors import SweepError
 from carmkin.validation import real_array, real_scalar
 
-from . import trajectory as tr
-from .clearance import DEFAULT_TOLERANCE, DISTANCE_ACCURACY, SweptClearance
+from carmkin.world import DEFAULT_MARGIN, DEFAULT_TOLERANCE, World
+from carmkin.world.obstacles import as_obstacles
 
-#: Default clearance (m) kept along the whole arc to patient, table and floor.
-DEFAULT_MARGIN = 0.01
+from . import trajectory as tr
 #: Most frames a sweep may have (bounds the cost of planning and export).
 MAX_VIEWS = 2000
 
@@ -89,7 +88,10 @@ class Sweep:
     projection matrices (table-frame m → px); ``target`` (3,) m; ``distance``: source-to-target (m);
     ``compensated``: frames keep the target on the axis; ``q_plain`` (n, nq) and ``drift`` (n,) m of the
     plain joint rotation; ``min_clearance``: certified swept lower bound (m) of every pair's distance over
-    the arc (``sampled_clearance``: smallest exact distance at the samples; samples made ``clearance_samples``);
+    the whole arc (:meth:`carmkin.world.World.swept` on every frame pair), also for a failed sweep (below the
+    margin, negative where a frame penetrates), NaN when a frame has no joints in range (the arc is then not
+    a path of the machine); ``sampled_clearance``: smallest exact distance at the samples; samples made
+    ``clearance_samples``;
     ``margin`` (m); ``frame_clearance`` (n,) smallest pair distance at each frame (m, NaN where not checked);
     ``limiting_joint`` with ``joint_extent`` (φ_min, φ_max) rad allowed by the joint ranges
     on this trajectory; ``short_scan`` (:class:`ShortScan`); ``failure`` (:class:`SweepFailure`, None on
@@ -162,8 +164,7 @@ class Sweep:
         lines = [f"sweep: {self.n_views} frames over {math.degrees(self.arc):.1f}° "
                  f"({'compensated' if self.compensated else 'plain'} trajectory), target at "
                  f"{self.distance * 1e3:.1f} mm from the source",
-                 f"swept clearance: {self.min_clearance * 1e3:.2f} mm certified (margin {self.margin * 1e3:.1f} mm; "
-                 f"{self.clearance_samples} distance samples)",
+                 _clearance_line(self),
                  f"plain rotation drift: max {self.drift.max() * 1e3:.3f} mm, mean {self.drift.mean() * 1e3:.3f} mm",
                  f"joint ranges allow φ = {math.degrees(self.joint_extent[0]):+.1f}° … "
                  f"{math.degrees(self.joint_extent[1]):+.1f}° (limited by {self.limiting_joint})",
@@ -172,9 +173,16 @@ class Sweep:
         return "\n".join(lines)
 
 
-def _patient(patient) -> tuple:
-    from carmkin.patient.obstacles import as_obstacles
+def _clearance_line(sweep: Sweep) -> str:
+    """The swept clearance for people: certified over the whole arc, or why there is none."""
+    if math.isnan(sweep.min_clearance):
+        return "swept clearance: none (a frame has no joints in range: the arc is not a path of the machine)"
+    below = "" if sweep.min_clearance >= sweep.margin else " — BELOW the margin"
+    return (f"swept clearance: {sweep.min_clearance * 1e3:.2f} mm certified over the whole arc{below} (margin "
+            f"{sweep.margin * 1e3:.1f} mm; {sweep.clearance_samples} distance samples)")
 
+
+def _patient(patient) -> tuple:
     return as_obstacles(patient, SweepError)
 
 
@@ -256,8 +264,6 @@ def plan_sweep(system, target, arc_deg: float = 190.0, n_views: int = 100, patie
     swept clearance may be, m). An arc that does not fit is not an exception: ``success`` is False and
     ``failure`` names the joint limit, contact or unreachable pose, where, and the largest feasible arc.
     """
-    from carmkin.robot.collision import CollisionScene
-
     target = real_array(target, "target", (3,), error=SweepError, unit="m")
     arc = math.radians(real_scalar(arc_deg, "arc_deg", error=SweepError, low=1e-6, high=360.0, unit="deg"))
     if isinstance(n_views, bool) or not isinstance(n_views, (int, np.integer)) or not 2 <= n_views <= MAX_VIEWS:
@@ -284,44 +290,37 @@ def plan_sweep(system, target, arc_deg: float = 190.0, n_views: int = 100, patie
     ok = reached & np.all(np.isfinite(q), axis=1)
     excess = np.where(ok[:, None], _excess(system, np.where(ok[:, None], q, 0.0)), 0.0)
     ok &= ~np.any(excess != 0, axis=1)
-    scene = CollisionScene.from_system(system, obstacles)
-    checker = SweptClearance(scene, margin, tolerance)
+    world = World(system, obstacles)
     first: SweepFailure | None = None
     frame_ok = ok.copy()
     seg_ok = np.zeros(max(len(phi) - 1, 0), dtype=bool)
     bound, sampled, samples = np.inf, np.inf, 0
-    d_prev = None
     frame_clearance = np.full(len(phi), np.nan)
     for k in range(len(phi)):
         if not ok[k]:
             kind = Limit.UNREACHABLE if not reached[k] else Limit.JOINT_LIMIT
             first = first or SweepFailure(kind, float(phi[k]), k, None, joint=_worst(system, q[k]))
-            d_prev = None
             continue
-        d = checker.distances(q[k])
+        if k and ok[k - 1]:  # the segment from the previous frame, certified over its whole length
+            check = world.swept(q[k - 1], q[k], margin=margin, tolerance=tolerance)
+            samples += check.samples
+            sampled = min(sampled, check.sampled_min)
+            bound = min(bound, check.min_distance)
+            seg_ok[k - 1] = check.clear
+            if check.contact_t is not None and first is None:
+                angle = float(phi[k - 1] + check.contact_t * (phi[k] - phi[k - 1]))
+                first = SweepFailure(Limit.CONTACT, angle, k - 1, None, pair=world.link_pairs()[check.contact_pair],
+                                     distance=check.contact_distance)
+        d = world.distances(q=q[k])
         frame_clearance[k] = float(d.min())
         samples += 1
         sampled = min(sampled, float(d.min()))
-        if d_prev is not None:  # the segment from the previous frame (it stops at a contact before this frame)
-            check = checker.segment(q[k - 1], q[k], d_prev, sampled)
-            samples += check.samples
-            sampled = min(sampled, check.sampled_min)
-            seg_ok[k - 1] = check.contact_t is None
-            if check.contact_t is None:
-                bound = min(bound, check.bound)
-            elif first is None:
-                angle = float(phi[k - 1] + check.contact_t * (phi[k] - phi[k - 1]))
-                first = SweepFailure(Limit.CONTACT, angle, k - 1, None, pair=scene.link_pairs()[check.pair],
-                                     distance=check.bound + DISTANCE_ACCURACY)
+        bound = min(bound, float(d.min()))
         if d.min() < margin:
             frame_ok[k] = False
             i = int(np.argmin(d))
-            first = first or SweepFailure(Limit.CONTACT, float(phi[k]), k, None, pair=scene.link_pairs()[i],
+            first = first or SweepFailure(Limit.CONTACT, float(phi[k]), k, None, pair=world.link_pairs()[i],
                                           distance=float(d[i]))
-            d_prev = None
-            continue
-        bound = min(bound, float(d.min()))
-        d_prev = d
     if first is not None:
         first = SweepFailure(first.kind, first.angle, first.frame, _largest_run(phi, frame_ok, seg_ok), first.joint,
                              first.pair, first.distance)
@@ -331,7 +330,8 @@ def plan_sweep(system, target, arc_deg: float = 190.0, n_views: int = 100, patie
     K, _ = intrinsics(system)
     R_t = np.transpose(poses[:, :3, :3], (0, 2, 1))
     P = K[None] @ np.concatenate((R_t, -R_t @ poses[:, :3, 3:4]), axis=2)
-    bound = bound if np.isfinite(bound) else math.nan  # nothing feasible was checked
+    # The swept minimum of the whole arc: defined only where every frame has joints in range (else NaN).
+    bound = bound if np.all(ok) and np.isfinite(bound) else math.nan
     return Sweep(system, q, phi, poses, P, target, float(distance), bool(compensate), w, q_plain, drift,
                  float(bound), float(sampled), samples, float(margin), limiting, extent,
                  ShortScan(arc, fan), frame_clearance, first, obstacles)

@@ -4,8 +4,8 @@
 :func:`~carmkin.views.reach_map` does for that cell), then
 
 * with ``q_current``: the joint-by-joint moves to the plan in the manual order of
-  :data:`carmkin.reposition.guidance.DEFAULT_ORDER`, each swept for collision by conservative advancement
-  (:func:`carmkin.reposition.guidance.sweep`, as repositioning does);
+  :data:`carmkin.world.DEFAULT_ORDER`, each swept for collision by the world's certified conservative
+  advancement (:meth:`carmkin.world.World.moves`, as repositioning does);
 * when the view is unreachable: the **nearest reachable view** (smallest angle between beam axes, same
   target; for a view with a fixed roll, first the same beam with any roll), searched in bands of :data:`NEAREST_BAND` of angle; each band holds rings of directions
   about the axis and the integer-degree (primary, secondary) grid directions of the patient in that band,
@@ -23,17 +23,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from carmkin.errors import PatientModelError, ViewError
-from carmkin.patient.obstacles import as_obstacles
-from carmkin.robot.collision import Obstacle
 from carmkin.validation import real_array, real_scalar
+from carmkin.world import DEFAULT_MARGIN, DEFAULT_PATH_CLEARANCE, Move, Obstacle, World  # noqa: F401 (Move: views.Move)
+from carmkin.world.obstacles import as_obstacles
 
 from . import refine, search
 from .view import View, _patient_frame
 
-#: Default clearance (m) every moving part keeps from patient, table and floor.
-DEFAULT_MARGIN = 0.02
 #: Clearance (m) kept along the swept moves (below the margin, so the goal's neighbourhood is reachable).
-PATH_CLEARANCE = 0.01
+PATH_CLEARANCE = DEFAULT_PATH_CLEARANCE
 #: A patient may rest on the table top but not sink into it by more than this (m).
 PATIENT_TABLE_TOLERANCE = 0.001
 #: Angular band (rad) of the nearest-view search, and its last angle.
@@ -43,18 +41,6 @@ NEAREST_LIMIT = math.radians(180.0)
 #: directions get the full search of a map cell, so the answer is never behind an integer-degree map).
 RING_SPACING_DEG = 2.0
 RING_CHECKS = 8
-
-
-@dataclass(frozen=True)
-class Move:
-    """One joint moved alone from ``start`` to ``end`` (m or rad); ``clear`` with its swept ``min_distance``."""
-
-    joint: str
-    start: float
-    end: float
-    clear: bool
-    min_distance: float
-    reason: str | None = None
 
 
 @dataclass(frozen=True)
@@ -95,8 +81,6 @@ def _key(system, obstacles):
 
 @functools.lru_cache(maxsize=8)
 def _world_cached(key):
-    from .clearance import World
-
     system, described = key
     obstacles = [Obstacle(n, s, z, np.frombuffer(p).reshape(4, 4)) for n, s, z, p in described]
     world = World(system, obstacles)
@@ -128,7 +112,7 @@ def world_for(system, patient):
 def _check_resting(world, obstacles) -> None:
     import coal
 
-    objects = world.scene.geometry_model.geometryObjects
+    objects = world.geometry_model.geometryObjects
     table = [o for o in objects if o.name.startswith("table_")]
     for obstacle in obstacles:
         geometry, pose = obstacle.geometry(), coal.Transform3s(obstacle.pose[:3, :3], obstacle.pose[:3, 3])
@@ -231,42 +215,15 @@ def _plan_cells(ctx, views) -> list[ViewPlan]:
 def _with_report(plan: ViewPlan, system, world, margin: float) -> ViewPlan:
     """The roll chosen, the exact clearance to patient, table and floor, and the validity report at the margin."""
     from carmkin.robot import validity
-    from carmkin.robot.collision import link_of
 
-    distances = world.scene.distances(q=plan.q)
-    obstacles = {o.name for o in world.obstacles}
-    groups = {"patient": [], "table": [], "floor": []}
-    for d, (_, other) in zip(distances.tolist(), world.scene.pairs):
-        group = "patient" if other in obstacles else link_of(other)
-        if group in groups:
-            groups[group].append(d)
-    clearance_to = {k: min(v) for k, v in groups.items() if v}
-    report = validity.check(system, plan.q, margin=margin, scene=world.scene)
+    clearance_to = world.grouped(plan.q)
+    report = validity.check(system, plan.q, margin=margin, world=world)
     return _replace(plan, x_axis=system.fk(plan.q)[:3, 0], clearance_to=clearance_to, validity=report)
 
 
 def _with_moves(plan: ViewPlan, system, world, q_from) -> ViewPlan:
-    from carmkin.reposition.guidance import DEFAULT_ORDER, GuidanceOptions, sweep
-
-    order = [system.joint_names.index(n) for n in DEFAULT_ORDER if n in system.joint_names]
-    order += [k for k in range(system.nq) if k not in order]
-    q, moves, pending = np.array(q_from, dtype=float), [], [k for k in order if q_from[k] != plan.q[k]]
-    lever = GuidanceOptions().lever_arm
-    while pending:
-        for k in pending:
-            target = q.copy()
-            target[k] = plan.q[k]
-            check = sweep(system, world.scene, q, target, PATH_CLEARANCE, lever)
-            if check.clear:
-                moves.append(Move(system.joint_names[k], float(q[k]), float(plan.q[k]), True, check.min_distance))
-                q, pending = target, [j for j in pending if j != k]
-                break
-        else:
-            k = pending[0]
-            moves.append(Move(system.joint_names[k], float(q[k]), float(plan.q[k]), False, check.min_distance,
-                              f"no joint can move alone without contact ({check.reason})"))
-            break
-    return _replace(plan, moves=tuple(moves))
+    """The joint-by-joint moves from ``q_from`` to the plan (:meth:`carmkin.world.World.moves`)."""
+    return _replace(plan, moves=world.moves(q_from, plan.q, clearance=PATH_CLEARANCE))
 
 
 def _replace(plan, **changes):

@@ -36,7 +36,7 @@ def _solver(world, margin: float):
     per_world = _PREPARED.setdefault(world, {})
     if margin not in per_world:
         per_world[margin] = qp_ik.prepare(world.system, options=qp_ik.QPIKOptions(safety_margin=margin),
-                                          scene=world.scene)
+                                          world=world)
     return per_world[margin]
 
 
@@ -63,7 +63,7 @@ def refine(ctx, target, direction, distance_range) -> tuple[np.ndarray, float, f
                 or not lo - QP_AXIS_TOLERANCE <= along <= hi + QP_AXIS_TOLERANCE
                 or np.any(q < system.lower) or np.any(q > system.upper)):
             continue
-        d, _ = world.clearance(q)
+        d = float(world.clearance(q)[0])
         if d >= ctx.margin:
             return q, d, along
     return None

@@ -9,8 +9,8 @@ the table frame — is at d_k < margin (coal) keeps that pair closer than the ma
 
     |s − s_c| + r_k |ρ − ρ_c| < margin − d_k − accuracy(d_k),
 
-r_k the largest distance of the moving shape from the beam axis (:attr:`World.roll_lever`), accuracy coal's
-(:func:`carmkin.sweeps.clearance.accuracy`). A candidate there is not checked: it touches. Candidates of the
+r_k the largest distance of the moving shape from the beam axis (:attr:`carmkin.world.beam.BeamScreen.roll_lever`),
+accuracy coal's (:func:`carmkin.world.tolerances.accuracy`). A candidate there is not checked: it touches. Candidates of the
 contact cells of a map lie mostly in such regions, so a few exact checks decide a cell.
 Written here: no library bounds a distance over a family of rigid motions this way.
 """
@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from carmkin.sweeps.clearance import accuracy
+from carmkin.world.tolerances import accuracy
 
 
 class Regions:
@@ -37,7 +37,7 @@ class Regions:
     def add(self, cells, where, distances, pairs) -> None:
         """Regions about candidates (s, ρ) ``where`` (M, 2) of ``cells`` (M,) whose pairs ``pairs`` (M,) are at
         ``distances`` (M,) (m) below the margin; pairs that are not rigid with the source are skipped."""
-        lever = self.world.roll_lever[np.maximum(pairs, 0)]
+        lever = self.world.beam.roll_lever[np.maximum(pairs, 0)]
         keep = (pairs >= 0) & np.isfinite(lever) & (distances < self.margin)
         if not keep.any():
             return
@@ -45,7 +45,7 @@ class Regions:
         self.cell = np.r_[self.cell, cells[keep]]
         self.where = np.vstack((self.where, where[keep]))
         self.lever = np.r_[self.lever, lever[keep]]
-        self.slack = np.r_[self.slack, self.margin - d - accuracy(np.abs(d))]
+        self.slack = np.r_[self.slack, self.margin - d - accuracy(d)]
         self._order = None
 
     def contain(self, cells, where) -> np.ndarray:

@@ -5,10 +5,10 @@ For N cells (target, beam direction, distance range) at once:
 1. every (held table sample, wigwag sample θ2, sign σ) family in closed form with its exact interval of
    distances (:mod:`carmkin.views.closed_form`);
 2. per family, candidates at :data:`DISTANCE_CHOICES` of its interval and at its best-scored distance, each
-   scored by the cheap bound of :meth:`World.beam_bound` (the free roll and distance are used for clearance
+   scored by the cheap bound of :meth:`carmkin.world.beam.BeamScreen.bound` (the free roll and distance are used for clearance
    first), ties (within :data:`CLEARANCE_BIN`) broken by the least normalised motion from the reference
    configuration, tried round-robin over the distance choices;
-3. per cell, the candidates in that order checked exactly (:meth:`World.clearances`) until one keeps the
+3. per cell, the candidates in that order checked exactly (:meth:`carmkin.world.World.nearest`) until one keeps the
    margin; the first that does is the answer, with its exact clearance. A candidate inside a certified
    contact region of an earlier one (:mod:`carmkin.views.regions`) touches and is not checked.
 
@@ -55,7 +55,7 @@ PARALLEL_MIN_CELLS = 2048
 
 @dataclass
 class Context:
-    """What stays fixed over a search: the system, its :class:`~carmkin.views.clearance.World`, the margin
+    """What stays fixed over a search: the system, its :class:`carmkin.world.World`, the margin
     (m), the reference configuration (nq,), the held table samples (list of q (nq,)) and the θ2 samples."""
 
     system: object
@@ -135,7 +135,7 @@ def _candidates(ctx: Context, chunk, kinds):
                 score = np.where(has, masked[np.arange(len(n)), best], np.nan)
                 if not has.all():
                     miss = ~has
-                    score[miss] = world.beam_bound(targets[n[miss]] - s_star[miss, None] * directions[n[miss]],
+                    score[miss] = world.beam.bound(targets[n[miss]] - s_star[miss, None] * directions[n[miss]],
                                                    directions[n[miss]])
             else:
                 s_try = s_lo + DISTANCE_CHOICES[kind - 1] * (s_hi - s_lo)
@@ -184,7 +184,7 @@ class _Chunk:
     fine: np.ndarray | None = None
 
     def fine_bound(self, world, n, s) -> np.ndarray:
-        """The beam bound (:meth:`World.beam_bound`) at distances s (M,) of cells n (M,), from below: it moves by
+        """The beam bound (:meth:`carmkin.world.beam.BeamScreen.bound`) at distances s (M,) of cells n (M,), from below: it moves by
         at most |Δs| when the source does, so ``g(s_j) − |s − s_j|`` at the two samples about s bounds it.
         Samples :data:`FINE_DISTANCE_SAMPLES` per cell on first use."""
         lo, hi = self.distance_range[:, 0], self.distance_range[:, 1]
@@ -192,7 +192,7 @@ class _Chunk:
             grid = lo[:, None] + (hi - lo)[:, None] * np.linspace(0, 1, FINE_DISTANCE_SAMPLES)
             sources = self.targets[:, None, :] - grid[..., None] * self.directions[:, None, :]
             d = np.repeat(self.directions, FINE_DISTANCE_SAMPLES, axis=0)
-            self.fine = world.beam_bound(sources.reshape(-1, 3), d).reshape(len(lo), FINE_DISTANCE_SAMPLES)
+            self.fine = world.beam.bound(sources.reshape(-1, 3), d).reshape(len(lo), FINE_DISTANCE_SAMPLES)
         step = (hi - lo)[n] / (FINE_DISTANCE_SAMPLES - 1)
         with np.errstate(divide="ignore", invalid="ignore"):
             u = np.where(step > 0, (s - lo[n]) / step, 0.0)
@@ -236,7 +236,7 @@ def _chunk(ctx: Context, targets, directions, distance_range, x_axes, index, sta
     lo, hi = distance_range[:, :1], distance_range[:, 1:]
     s_grid = lo + (hi - lo) * np.linspace(0, 1, DISTANCE_SAMPLES)
     sources = targets[:, None, :] - s_grid[..., None] * directions[:, None, :]
-    grid_score = world.beam_bound(sources.reshape(-1, 3), np.repeat(directions, DISTANCE_SAMPLES, axis=0))
+    grid_score = world.beam.bound(sources.reshape(-1, 3), np.repeat(directions, DISTANCE_SAMPLES, axis=0))
     chunk = _Chunk(targets, directions, s_grid, grid_score.reshape(N, DISTANCE_SAMPLES), [], distance_range, index)
     for hold in ctx.holds:
         frame = _frame(system, hold)
@@ -271,7 +271,7 @@ def _check(ctx: Context, state: _State, n, q, where, rank) -> None:
     rows = rows[~state.regions.contain(n[rows], where[rows])]
     if not len(rows):
         return
-    distance, pair = ctx.world.clearances(q[rows], stop_below=margin)
+    distance, pair = ctx.world.nearest(q[rows], stop_below=margin)
     touching = []
     for i, (k, dk, pk) in enumerate(zip(rows.tolist(), distance.tolist(), pair.tolist())):
         cell = int(n[k])

@@ -200,7 +200,7 @@ def test_motorized_table_through_the_one_solve():
     assert shot.q.shape == (system.nq,)
     from carmkin import qp_ik
 
-    qp = qp_ik.solve(system, shot.target, q_current=planner.q_reference, scene=planner.scene, closed_form=False,
+    qp = qp_ik.solve(system, shot.target, q_current=planner.q_reference, world=planner.scene, closed_form=False,
                      accept=lambda report: report.valid)
     assert qp.path == "qp" and qp.success and qp.validity.valid
     assert pose_residual(system.fk(qp.q), shot.target) < 1e-5

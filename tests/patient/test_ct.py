@@ -43,18 +43,18 @@ def test_skin_is_inside_the_boxes(body):
 
 def test_ct_body_rests_on_the_table_and_views_plan_around_it(body):
     from carmkin.robot import validity
-    from carmkin.robot.collision import CollisionScene
+    from carmkin.world import World
     from carmkin.views import DEFAULT_MARGIN, View, plan_view
 
     system, patient = body
     surface = system.table.top_center[1] - system.table.top_size[1] / 2
     assert np.max(patient._corners()[:, 1]) == pytest.approx(surface, abs=1e-9)
-    scene = CollisionScene.from_system(system, patient.obstacles())
+    scene = World(system, patient.obstacles())
     planned = 0
     for p, s in ((0, 0), (30, 20), (-30, -10), (90, 0)):
         plan = plan_view(system, View.from_angles(p, s, (0.0, -0.1, 0.0), patient), patient, nearest=False)
         if plan.success:
-            assert validity.check(system, plan.q, margin=DEFAULT_MARGIN, scene=scene).reachable
+            assert validity.check(system, plan.q, margin=DEFAULT_MARGIN, world=scene).reachable
             planned += 1
     assert planned
 

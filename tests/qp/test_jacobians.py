@@ -13,7 +13,7 @@ from strategies import PRESET
 
 import carmkin
 from carmkin.qp.tasks import AimTask, AxisTask, PoseTask
-from carmkin.robot.collision import CollisionScene
+from carmkin.world import World
 
 MOTORIZED = carmkin.load_preset("siremobile-iso-c3d-motorized-table")
 SYSTEMS = {"plain": PRESET, "motorized": MOTORIZED}
@@ -104,7 +104,7 @@ def test_distance_jacobian_matches_central_differences(name, data):
     """Rows of d(distance)/dq from coal's witness points and normals against differences of the distances,
     for the separated pairs where the distance is smooth (one-sided differences agree)."""
     system = SYSTEMS[name]
-    scene = CollisionScene.from_system(system)
+    scene = World(system)
     model = scene.model
     q = in_range(system, data.draw(unit(system.nq), label="q"))
     state = model.createData()

@@ -11,8 +11,8 @@ import carmkin
 from carmkin import analytic_ik, qp_ik
 from carmkin.errors import CarmkinError, InvalidConfigurationError, InvalidPoseError, QPIKError
 from carmkin.robot import validity
-from carmkin.robot.clearance import BOUND_SLACK
-from carmkin.robot.collision import CollisionScene, Obstacle
+from carmkin.world.tolerances import BOUND_SLACK
+from carmkin.world import Obstacle, World
 from carmkin.transforms import nearest_rigid, pose_error
 
 MOTORIZED = carmkin.load_preset("siremobile-iso-c3d-motorized-table")
@@ -145,7 +145,7 @@ def test_junk_targets_are_typed_errors(target):
     dict(options="fast"), dict(options=None), dict(obstacles="patient"), dict(obstacles=None),
     dict(obstacles=[1]), dict(random_seeds=True), dict(random_seeds=-1), dict(rng_seed="0"),
     dict(closed_form="yes"), dict(prefer="both"), dict(free="wigwag"), dict(weights="heavy"),
-    dict(weights=[True] * 6), dict(accept=True), dict(scene="scene"),
+    dict(weights=[True] * 6), dict(accept=True), dict(world="scene"),
 ])
 def test_junk_options_are_typed_errors(kwargs):
     with pytest.raises(CarmkinError):
@@ -202,4 +202,4 @@ def test_prepared_solvers_are_reused_by_the_wrapper_and_freed_with_the_system():
 
 def test_a_prebuilt_scene_and_obstacles_together_are_refused():
     with pytest.raises(QPIKError, match="either"):
-        qp_ik.prepare(PRESET, PATIENT, scene=CollisionScene.from_system(PRESET))
+        qp_ik.prepare(PRESET, PATIENT, world=World(PRESET))

@@ -22,10 +22,10 @@ from carmkin import qp_ik
 from carmkin.qp.tasks import AimTask, AxisTask, PoseTask, TaskError
 from carmkin.qp_ik import QPIK, AimTarget, AxisTarget, QPIKError, QPIKOptions, make_task
 from carmkin.robot import validity
-from carmkin.robot.collision import CollisionScene, Obstacle
+from carmkin.world import Obstacle, World
 
 MODEL = PRESET.pinocchio()[0]
-SCENE = CollisionScene.from_system(PRESET)
+SCENE = World(PRESET)
 MARGIN = QPIKOptions().safety_margin
 TOL = 1e-6
 unit6 = st.lists(st.floats(0.0, 1.0), min_size=6, max_size=6).map(np.array)
@@ -75,7 +75,7 @@ def test_pose_targets_converge_within_limits_and_margin(u, noise):
     p, a = pose_error(run.q, T)
     assert p <= 1.01 * TOL and a <= 1.01 * TOL
     assert np.all(run.q >= PRESET.lower) and np.all(run.q <= PRESET.upper)
-    fresh = CollisionScene.from_system(PRESET)
+    fresh = World(PRESET)
     assert min(fresh.distances(q=h).min() for h in run.history) >= MARGIN - 1e-9
     assert run.min_distance >= MARGIN - 1e-9
 
@@ -115,7 +115,7 @@ def test_motorized_table_model_with_eleven_joints():
     target blocked at Q_A that the extra table joints help to clear."""
     system = carmkin.load_preset("siremobile-iso-c3d-motorized-table")
     assert system.nq == 11
-    scene = CollisionScene.from_system(system)
+    scene = World(system)
     model = scene.model
     rng = np.random.default_rng(9)
     task = PoseTask(model, "xray_source", np.eye(4))
@@ -135,11 +135,11 @@ def test_motorized_table_model_with_eleven_joints():
         solved += 1
     q_a = np.concatenate((Q_A[:1], np.zeros(5), Q_A[1:]))  # extra table joints at rest: the paper's chain
     assert np.allclose(system.fk(q_a), PRESET.fk(Q_A))
-    blocked = CollisionScene.from_system(system, [blocking_box()])
+    blocked = World(system, [blocking_box()])
     T = system.fk(q_a)
     run = QPIK(model, [make_task(model, AxisTarget(T[:3, 3], T[:3, 2]))], blocked).solve(q_a)
     assert run.success, run.reason
-    assert validity.check(system, run.q, scene=blocked, margin=MARGIN - 1e-6).reachable
+    assert validity.check(system, run.q, world=blocked, margin=MARGIN - 1e-6).reachable
 
 
 @pytest.mark.parametrize("backend", [b for b in qp_ik.BACKENDS if b in qpsolvers.available_solvers])
@@ -218,20 +218,20 @@ def test_blocked_branch_rolls_around_the_obstacle():
     collision-free configuration on the same axis. A collision-free alternative exists: the QP without the
     box reaches the pose rolled by 6° about the axis, and that configuration clears the box."""
     box = blocking_box()
-    scene = CollisionScene.from_system(PRESET, [box])
-    assert not validity.check(PRESET, Q_A, scene=scene).reachable
+    scene = World(PRESET, [box])
+    assert not validity.check(PRESET, Q_A, world=scene).reachable
     T = PRESET.fk(Q_A)
     for roll in (+1, -1):
         rolled = T.copy()
         rolled[:3, :3] = T[:3, :3] @ pin.exp3(np.array([0.0, 0.0, roll * np.radians(6)]))
         alternative = QPIK(MODEL, [PoseTask(MODEL, "xray_source", rolled)], SCENE).solve(Q_A)
-        if alternative.success and validity.check(PRESET, alternative.q, scene=scene, margin=MARGIN).reachable:
+        if alternative.success and validity.check(PRESET, alternative.q, world=scene, margin=MARGIN).reachable:
             break
     else:
         pytest.fail("constructed case: no collision-free alternative found")
     run = QPIK(MODEL, [make_task(MODEL, AxisTarget(T[:3, 3], T[:3, 2]))], scene).solve(Q_A, record=True)
     assert run.success, run.reason
-    assert validity.check(PRESET, run.q, scene=scene, margin=MARGIN - 1e-6).reachable
+    assert validity.check(PRESET, run.q, world=scene, margin=MARGIN - 1e-6).reachable
     F = PRESET.fk(run.q)
     assert np.linalg.norm(F[:3, 3] - T[:3, 3]) <= 1.01 * TOL and F[:3, 2] @ T[:3, 2] >= 1 - 1e-12
     assert abs(run.q[2]) > 0.01  # it rolled with the wigwag
@@ -241,7 +241,7 @@ def test_no_alternative_gives_a_failure_not_a_colliding_answer():
     """An obstacle around the source centre blocks every configuration with that source pose."""
     T = PRESET.fk(Q_A)
     patient = Obstacle.box("patient", (0.1, 0.1, 0.1), T[:3, 3])
-    scene = CollisionScene.from_system(PRESET, [patient])
+    scene = World(PRESET, [patient])
     for target in (T, AxisTarget(T[:3, 3], T[:3, 2])):
         run = QPIK(MODEL, [make_task(MODEL, target)], scene).solve(Q_A)
         assert not run.success and run.reason
@@ -397,4 +397,4 @@ def test_acceptance_rule_decides_and_failures_are_structured():
 
 def test_scene_or_obstacles_not_both():
     with pytest.raises(QPIKError, match="either"):
-        qp_ik.solve(PRESET, PRESET.fk(Q_A), obstacles=[blocking_box()], scene=SCENE)
+        qp_ik.solve(PRESET, PRESET.fk(Q_A), obstacles=[blocking_box()], world=SCENE)

@@ -19,10 +19,10 @@ from carmkin.qp_ik import (
     solve,
     solve_redundant,
 )
-from carmkin.robot.collision import CollisionScene
+from carmkin.world import World
 
 MOTORIZED = carmkin.load_preset("siremobile-iso-c3d-motorized-table")
-SCENE = CollisionScene.from_system(MOTORIZED)
+SCENE = World(MOTORIZED)
 TABLE = np.array([is_table_joint(n) for n in MOTORIZED.joint_names])
 MARGIN = 0.01
 

@@ -14,10 +14,10 @@ from carmkin.qp.limits import CollisionAvoidance, JointLimits
 from carmkin.qp.step import build_step, solve_step
 from carmkin.qp.tasks import PoseTask
 from carmkin.qp_ik import QPIKOptions
-from carmkin.robot.collision import CollisionScene
+from carmkin.world import World
 from carmkin.robot.state import KinematicState
 
-SCENE = CollisionScene.from_system(PRESET)
+SCENE = World(PRESET)
 MODEL = SCENE.model
 OPTIONS = QPIKOptions()
 unit6 = st.lists(st.floats(0.0, 1.0), min_size=6, max_size=6).map(np.array)

@@ -12,11 +12,11 @@ from hypothesis import strategies as st
 import carmkin
 from carmkin.reposition import guidance
 from carmkin.robot import validity
-from carmkin.robot.collision import CollisionScene
+from carmkin.world import World
 
 SYSTEM = carmkin.load_preset("siremobile-iso-c3d")
 MOTORIZED = carmkin.load_preset("siremobile-iso-c3d-motorized-table")
-SCENE = CollisionScene.from_system(SYSTEM)
+SCENE = World(SYSTEM)
 finite = dict(allow_nan=False, allow_infinity=False)
 #: coal's GJK distances between boxes repeat only to ~1e-6 m (measured: 1.4e-6 m for the same q twice).
 DISTANCE_NOISE = 1e-5
@@ -36,24 +36,8 @@ def test_read_joints_inverts_the_fk(data):
         np.testing.assert_allclose(read, q, atol=1e-7)
 
 
-@given(st.data())
-def test_lever_arm_bounds_how_fast_distances_change(data):
-    """The sweep's premise: moving joint j by δ changes every pair distance by at most L_j |δ|."""
-    options = guidance.GuidanceOptions()
-    q = in_range(SYSTEM, data)
-    j = data.draw(st.integers(0, SYSTEM.nq - 1))
-    delta = data.draw(st.floats(-0.05, 0.05, **finite))
-    q2 = q.copy()
-    q2[j] += delta
-    model = SYSTEM.pinocchio()[0]
-    d1 = SCENE.distances(q=q)
-    d2 = SCENE.distances(q=q2)
-    bound = (1.0 if SYSTEM.prismatic[j] else options.lever_arm) * abs(delta)
-    assert np.max(np.abs(d2 - d1)) <= bound + DISTANCE_NOISE, (model.names[j + 1], np.max(np.abs(d2 - d1)), bound)
-
-
 def dense_min_distance(q0, q1, samples=400):
-    return min(validity.check(SYSTEM, q0 + t * (q1 - q0), scene=SCENE).min_distance
+    return min(validity.check(SYSTEM, q0 + t * (q1 - q0), world=SCENE).min_distance
                for t in np.linspace(0.0, 1.0, samples))
 
 
@@ -63,10 +47,10 @@ def test_sweep_finds_a_collision_between_two_clear_ends():
     q0 = np.array([0.0, 0.4, 0.0, 0.1, math.radians(-100), 0.0])
     q1 = q0.copy()
     q1[4] = math.radians(100)
-    ends = [validity.check(SYSTEM, q, scene=SCENE).min_distance for q in (q0, q1)]
+    ends = [validity.check(SYSTEM, q, world=SCENE).min_distance for q in (q0, q1)]
     middle = dense_min_distance(q0, q1)
     assert min(ends) > 0.005 and middle < 0.0, (ends, middle)
-    result = guidance.sweep(SYSTEM, SCENE, q0, q1, 0.005, 2.5)
+    result = SCENE.swept(q0, q1, margin=0.005, stop_at_contact=True)
     assert not result.clear
 
 
@@ -77,7 +61,7 @@ def test_a_clear_sweep_is_clear_everywhere(data):
     j = data.draw(st.integers(0, SYSTEM.nq - 1))
     q1 = q0.copy()
     q1[j] = data.draw(st.floats(SYSTEM.lower[j], SYSTEM.upper[j], **finite))
-    result = guidance.sweep(SYSTEM, SCENE, q0, q1, 0.005, 2.5)
+    result = SCENE.swept(q0, q1, margin=0.005, stop_at_contact=True)
     if result.clear:
         assert dense_min_distance(q0, q1, 100) >= 0.005 - DISTANCE_NOISE
 

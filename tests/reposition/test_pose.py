@@ -175,11 +175,11 @@ def test_noisy_estimates_leak_no_warning():
 
     from carmkin.reposition import experiment
     from carmkin.reposition.world import World
-    from carmkin.robot.collision import CollisionScene
+    from carmkin.world import World as CollisionWorld
 
     rng = np.random.default_rng(12)
     world = World(SYSTEM, BOARD, MOUNT, MOUNT[:3, :3])
-    scene = CollisionScene.from_system(SYSTEM)
+    scene = CollisionWorld(SYSTEM)
     config = experiment.ExperimentConfig()
     with warnings.catch_warnings():
         warnings.simplefilter("error")

@@ -10,11 +10,11 @@ from strategies import PRESET
 import carmkin
 from carmkin.errors import InvalidConfigurationError
 from carmkin.robot import validity
-from carmkin.robot.collision import CollisionScene, Obstacle
+from carmkin.world import Obstacle, World
 
 TABLE_CENTER = np.array(PRESET.table.top_center)
 TABLE_HALF = 0.5 * np.array(PRESET.table.top_size)
-SCENE = CollisionScene.from_system(PRESET)
+SCENE = World(PRESET)
 unit6 = st.lists(st.floats(0.0, 1.0), min_size=6, max_size=6).map(np.array)
 
 
@@ -28,8 +28,8 @@ def inside_table(p):
 
 def test_zero_configuration_is_valid():
     """At q = 0 the beam goes up through the isocentre (table frame origin) and the C clears the table."""
-    report = validity.check(PRESET, np.zeros(6), scene=SCENE)
-    assert report.valid and report.reasons == () and str(report) == "valid at margin 0 mm"
+    report = validity.check(PRESET, np.zeros(6), world=SCENE)
+    assert report.valid and report.reasons == () and str(report) == "valid at margin 10 mm"
     assert report.min_distance > 0
 
 
@@ -37,7 +37,7 @@ def test_joints_out_of_range_are_named_with_their_excess():
     q = np.zeros(6)
     q[1] = PRESET.upper[1] + 0.05  # vertical 5 cm too high
     q[5] = PRESET.lower[5] - 0.1  # orbital 0.1 rad too low
-    report = validity.check(PRESET, q, scene=SCENE)
+    report = validity.check(PRESET, q, world=SCENE)
     excess = {j.name: j.excess for j in report.joints}
     assert excess == pytest.approx({"vertical": 0.05, "orbital": -0.1})
     assert not report.valid and not report.reachable
@@ -61,7 +61,7 @@ def test_source_inside_the_table_is_a_table_collision():
     for q in rng.uniform(PRESET.lower, PRESET.upper, size=(20000, 6)):
         if not inside_table(PRESET.fk(q)[:3, 3]):
             continue
-        report = validity.check(PRESET, q, scene=SCENE)
+        report = validity.check(PRESET, q, world=SCENE)
         assert ("xray_source", "table") in [c.links for c in report.collisions]
         assert not report.valid and "intersects table" in str(report)
         found += 1
@@ -79,9 +79,9 @@ def test_obstacle_at_the_source_is_reported_by_name():
 
 def test_margin_counts_near_pairs():
     q = np.zeros(6)
-    d = validity.check(PRESET, q, scene=SCENE).min_distance
-    assert validity.check(PRESET, q, scene=SCENE, margin=0.5 * d).reachable
-    report = validity.check(PRESET, q, scene=SCENE, margin=d + 1e-3)
+    d = validity.check(PRESET, q, world=SCENE).min_distance
+    assert validity.check(PRESET, q, world=SCENE, margin=0.5 * d).reachable
+    report = validity.check(PRESET, q, world=SCENE, margin=d + 1e-3)
     assert report.collisions and "within the margin" in str(report)
 
 
@@ -92,7 +92,7 @@ def test_beam_parallel_to_the_table_misses_it():
     T = PRESET.fk(q)
     assert abs(T[1, 2]) < 1e-9  # axis perpendicular to Y0, i.e. parallel to the table top
     assert abs(T[1, 3] - TABLE_CENTER[1]) > TABLE_HALF[1]  # and off its thickness
-    report = validity.check(PRESET, q, scene=SCENE)
+    report = validity.check(PRESET, q, world=SCENE)
     assert not report.table_in_cone
     assert "not in the X-ray cone" in str(report)
 
@@ -124,7 +124,7 @@ def test_pairs_separated_by_bounding_spheres_are_not_reported(u):
     pin.updateGeometryPlacements(model, data, gm, gd)
     index = {g.name: i for i, g in enumerate(gm.geometryObjects)}
     radius = {g.name: 0.5 * np.linalg.norm(2 * g.geometry.halfSide) for g in gm.geometryObjects}
-    report = validity.check(PRESET, q, scene=SCENE)
+    report = validity.check(PRESET, q, world=SCENE)
     reported = {(c.first, c.second) for c in report.collisions}
     for a, b in SCENE.pairs:
         gap = np.linalg.norm(gd.oMg[index[a]].translation - gd.oMg[index[b]].translation) - radius[a] - radius[b]

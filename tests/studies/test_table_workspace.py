@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 import carmkin
 from carmkin.commands import workspace as workspace_command
-from carmkin.robot.collision import CollisionScene
+from carmkin.world import World
 from carmkin.studies import table_workspace as tw
 
 MOTORIZED = carmkin.load_preset("siremobile-iso-c3d-motorized-table")
@@ -19,7 +19,7 @@ def test_desired_configurations_in_range_collision_free_and_seeded():
     qs = tw.desired_configurations(MOTORIZED, 12, seed=3)
     assert qs.shape == (12, MOTORIZED.nq)
     assert np.all(qs >= MOTORIZED.lower) and np.all(qs <= MOTORIZED.upper)
-    scene = CollisionScene.from_system(MOTORIZED)
+    scene = World(MOTORIZED)
     assert min(scene.distances(q=q).min() for q in qs) >= 0.01
     assert np.array_equal(qs, tw.desired_configurations(MOTORIZED, 12, seed=3))
     assert not np.array_equal(qs, tw.desired_configurations(MOTORIZED, 12, seed=4))
@@ -31,7 +31,7 @@ def test_carm_alone_reaches_poses_of_its_own_configurations(u):
     """Poses generated with every table joint at zero are reached by the C-arm alone (5-DOF closed form)."""
     q = np.zeros(MOTORIZED.nq)
     q[-5:] = MOTORIZED.lower[-5:] + u * (MOTORIZED.upper[-5:] - MOTORIZED.lower[-5:])
-    scene = CollisionScene.from_system(MOTORIZED)
+    scene = World(MOTORIZED)
     assume(scene.distances(q=q).min() >= 0.01)
     assert tw.reachable(MOTORIZED, MOTORIZED.fk(q), "none", random_seeds=0)
 

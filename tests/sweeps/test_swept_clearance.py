@@ -11,16 +11,17 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from strategies import PRESET, configurations, motorized_systems
 
-from carmkin.robot.collision import CollisionScene, Obstacle
+from carmkin.world import Obstacle, World
 from carmkin.sweeps import Limit, plan_sweep
-from carmkin.sweeps.clearance import accuracy, speed_bounds
+from carmkin.world.swept import speed_bounds
+from carmkin.world.tolerances import accuracy
 
 #: Acceptance (issue 22): intermediate angles are checked at this step.
 CHECK_STEP = math.radians(0.1)
 
 
 def dense_distances(sweep, lo=None, hi=None):
-    scene = CollisionScene.from_system(sweep.system, list(sweep.obstacles))
+    scene = World(sweep.system, list(sweep.obstacles))
     data = scene.model.createData()
     lo = sweep.angles[0] if lo is None else lo
     hi = sweep.angles[-1] if hi is None else hi
@@ -59,7 +60,7 @@ def test_a_sweep_that_collides_mid_arc_is_cut_with_the_angle():
 @given(st.data())
 def test_speed_bound_is_sound(data):
     system = data.draw(st.sampled_from([PRESET, data.draw(motorized_systems(max_joints=2))]))
-    scene = CollisionScene.from_system(system, PATIENT)
+    scene = World(system, PATIENT)
     # No box of negative size (l1 = l2 = 1 m once gave the inner arm a half-extent of −0.13 m, and coal's
     # distances to it were wrong and changed between queries): the xacro keeps a stub of the arm.
     assert all(np.all(np.asarray(g.geometry.halfSide) > 0) for g in scene.geometry_model.geometryObjects

@@ -9,7 +9,7 @@ import carmkin
 from carmkin.errors import ViewError
 from carmkin.patient import ParametricPatient
 from carmkin.robot import validity
-from carmkin.robot.collision import CollisionScene
+from carmkin.world import World
 from carmkin.views import DEFAULT_MARGIN, carm_alone, compare_maps, reach_map
 from carmkin.views.compare import table_samples
 
@@ -29,13 +29,13 @@ def test_every_reachable_cell_of_each_system_is_right(compared):
     systems, patient, maps = compared
     checked = 0
     for system, m in zip(systems, maps):
-        scene = CollisionScene.from_system(system, patient.obstacles())
+        scene = World(system, patient.obstacles())
         samples = np.array(table_samples(system)) if system.table.joints else None
         for i, j in zip(*np.nonzero(m.reachable)):
             q = m.q[i, j]
             T = system.fk(q)
             assert np.linalg.norm(T[:3, 2] - m.directions[i, j]) < 1e-9
-            assert validity.check(system, q, margin=DEFAULT_MARGIN, scene=scene).reachable
+            assert validity.check(system, q, margin=DEFAULT_MARGIN, world=scene).reachable
             if samples is not None:  # the table joints are those of one sample
                 table = [k for k, n in enumerate(system.joint_names) if n.startswith("table_") and k]
                 assert np.min(np.abs(samples[:, table] - q[table]).max(axis=1)) == 0.0

@@ -10,7 +10,7 @@ from view_systems import TARGET
 from carmkin import analytic_ik
 from carmkin.interop.dicom import pose_from_xa_angles
 from carmkin.robot import validity
-from carmkin.robot.collision import CollisionScene
+from carmkin.world import World
 from carmkin.views import DEFAULT_MARGIN, View, plan_view
 
 #: Beam residuals (m, rad) of an answer: every answer here comes from a closed form.
@@ -22,7 +22,7 @@ CLEARANCE_TOLERANCE = 1e-9
 def test_every_reachable_cell_is_right(maps):
     checked = 0
     for name, (system, patient, m) in maps.items():
-        scene = CollisionScene.from_system(system, patient.obstacles())
+        scene = World(system, patient.obstacles())
         for i, j in zip(*np.nonzero(m.reachable)):
             q, d = m.q[i, j], m.directions[i, j]
             assert all(r.contains(v) for r, v in zip(system.joint_ranges, q)), (name, q)
@@ -30,8 +30,8 @@ def test_every_reachable_cell_is_right(maps):
             w = np.asarray(TARGET) - T[:3, 3]
             assert np.linalg.norm(T[:3, 2] - d) < AXIS_TOLERANCE
             assert np.linalg.norm(w - (w @ d) * d) < AXIS_TOLERANCE
-            fresh = CollisionScene.from_system(system, patient.obstacles()) if checked % 50 == 0 else scene
-            report = validity.check(system, q, margin=DEFAULT_MARGIN, scene=fresh)
+            fresh = World(system, patient.obstacles()) if checked % 50 == 0 else scene
+            report = validity.check(system, q, margin=DEFAULT_MARGIN, world=fresh)
             assert not report.collisions, (name, report.collisions[:2])
             assert abs(report.min_distance - m.clearance[i, j]) < CLEARANCE_TOLERANCE
             checked += 1
@@ -92,7 +92,7 @@ def test_unreachable_cells_along_the_table_axis_by_the_qp(maps):
 
     checked = 0
     for name, (system, patient, m) in maps.items():
-        scene = CollisionScene.from_system(system, patient.obstacles())
+        scene = World(system, patient.obstacles())
         solver = qp_ik.prepare(system, patient.obstacles(), qp_ik.QPIKOptions(safety_margin=DEFAULT_MARGIN),
                                search=SearchOptions(random_seeds=3))
         cells = [(i, k) for i, k in zip(*np.nonzero(~m.reachable)) if abs(m.secondary_deg[k]) == 90]
@@ -103,7 +103,7 @@ def test_unreachable_cells_along_the_table_axis_by_the_qp(maps):
                 if result.success:
                     T = system.fk(result.q)
                     on_beam = np.linalg.norm(T[:3, 2] - d) < 1e-6
-                    assert not (on_beam and validity.check(system, result.q, margin=DEFAULT_MARGIN, scene=scene)
+                    assert not (on_beam and validity.check(system, result.q, margin=DEFAULT_MARGIN, world=scene)
                                 .reachable), (name, m.primary_deg[i], m.secondary_deg[k], s)
             checked += 1
     print(f"\n{checked} unreachable cells along the table axis: the QP finds no clear configuration")
@@ -118,7 +118,7 @@ def test_unreachable_cells_are_unreachable(maps):
     checked = 0
     for name in ("C-arm alone", "6-DOF", "non-isocentric", "motorized"):
         system, patient, m = maps[name]
-        scene = CollisionScene.from_system(system, patient.obstacles())
+        scene = World(system, patient.obstacles())
         if system.table.joints:  # the map holds the table joints at mid-range, where the table motion is I:
             system = _held_table(system)  # the pose IK of the same C-arm, the table joints put back for the scene
             scene = _HeldScene(scene, m.q.shape[-1])
@@ -140,7 +140,7 @@ def test_plan_view_agrees_with_the_map(maps):
     compared = freed = 0
     for name, (system, patient, m) in maps.items():
         rng = np.random.default_rng(0)
-        scene = CollisionScene.from_system(system, patient.obstacles())
+        scene = World(system, patient.obstacles())
         for i, j in zip(rng.integers(0, len(m.primary_deg), 25), rng.integers(0, len(m.secondary_deg), 25)):
             view = View.from_angles(m.primary_deg[i], m.secondary_deg[j], TARGET, patient)
             plan = plan_view(system, view, patient, nearest=False)
@@ -150,7 +150,7 @@ def test_plan_view_agrees_with_the_map(maps):
                 w = np.array(TARGET) - T[:3, 3]
                 assert np.linalg.norm(T[:3, 2] - view.axis) < 1e-6
                 assert np.linalg.norm(w - (w @ T[:3, 2]) * T[:3, 2]) < 1e-6
-                assert validity.check(system, plan.q, margin=DEFAULT_MARGIN, scene=scene).reachable
+                assert validity.check(system, plan.q, margin=DEFAULT_MARGIN, world=scene).reachable
                 freed += 1
                 continue
             assert plan.success == m.reachable[i, j], (name, m.primary_deg[i], m.secondary_deg[j])

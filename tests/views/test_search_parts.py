@@ -13,10 +13,9 @@ from strategies import configurations, motorized_systems, systems, unit_vectors
 import carmkin
 from carmkin.errors import ViewError
 from carmkin.patient import ParametricPatient
-from carmkin.robot.collision import CollisionScene
-from carmkin.sweeps.clearance import DISTANCE_ACCURACY
+from carmkin.world import World
+from carmkin.world.tolerances import DISTANCE_ACCURACY
 from carmkin.views import View, closed_form, reach_map, search
-from carmkin.views.clearance import World
 from carmkin.views.regions import Regions
 
 #: Two coal calls on one pair agree to this (m): GJK's initial guess differs with the order of the calls.
@@ -27,7 +26,7 @@ ROLL_TOLERANCE = 1e-9
 
 def _world(system):
     patient = ParametricPatient.on_table(system)
-    return World(system, patient.obstacles()), CollisionScene.from_system(system, patient.obstacles())
+    return World(system, patient.obstacles()), World(system, patient.obstacles())
 
 
 @pytest.mark.parametrize("name", carmkin.list_presets())
@@ -36,13 +35,13 @@ def test_clearances_are_the_minimum_over_all_pairs(name):
     world, scene = _world(system)
     rng = np.random.default_rng(1)
     Q = system.lower + rng.random((300, system.nq)) * (system.upper - system.lower)
-    d, pair = world.clearances(Q)
+    d, pair = world.nearest(Q)
     full = np.array([scene.distances(q=q) for q in Q])
     np.testing.assert_allclose(d, full.min(axis=1), rtol=0, atol=SAME_CALL)
     np.testing.assert_array_equal(pair, full.argmin(axis=1))
     # With a stop, a distance below it is some pair's own distance; one above it is still the minimum.
     stop = np.median(d)
-    d_stop, pair_stop = world.clearances(Q, stop_below=stop)
+    d_stop, pair_stop = world.nearest(Q, stop_below=stop)
     below = d_stop < stop
     np.testing.assert_allclose(d_stop[below], full[below, pair_stop[below]], rtol=0, atol=SAME_CALL)
     np.testing.assert_allclose(d_stop[~below], full[~below].min(axis=1), rtol=0, atol=SAME_CALL)
@@ -55,7 +54,7 @@ def test_clearances_on_random_systems(data):
     system = data.draw(st.one_of(systems(), motorized_systems(min_joints=1)))
     world, scene = _world(system)
     Q = np.array([data.draw(configurations(system)) for _ in range(20)])
-    d, _ = world.clearances(Q)
+    d, _ = world.nearest(Q)
     np.testing.assert_allclose(d, [scene.distances(q=q).min() for q in Q], rtol=0, atol=SAME_CALL)
 
 
@@ -89,7 +88,7 @@ def _claimed(system, target, direction, margin):
     Q = _cell_candidates(system, np.clip(np.zeros(system.nq), system.lower, system.upper), target, direction)
     where = _where(system, Q, target, direction)
     regions = Regions(world, margin)
-    d, pair = world.clearances(Q[::2], stop_below=margin)
+    d, pair = world.nearest(Q[::2], stop_below=margin)
     regions.add(np.zeros(len(d), dtype=int), where[::2], d, pair)
     inside = regions.contain(np.zeros(len(Q[1::2]), dtype=int), where[1::2])
     for q in Q[1::2][inside]:

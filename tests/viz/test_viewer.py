@@ -41,7 +41,8 @@ from strategies import PRESET, configurations, systems
 
 from carmkin.cli import main
 from carmkin.commands._common import parse_joints
-from carmkin.robot.collision import CARM_EXCLUDED_PAIRS, CollisionScene, link_of
+from carmkin.robot.collision import CARM_EXCLUDED_PAIRS, link_of
+from carmkin.world import World
 from carmkin.errors import InvalidConfigurationError, InvalidPoseError
 
 # RGB of the xacro materials (urdf/carm_table.urdf.xacro), typed here from the file, not from carmkin.viz.
@@ -231,7 +232,7 @@ def test_viewer_is_general_in_the_number_of_joints(data):
     assert viewer.animate(q_to, frames=3).shape == (3, 11)
     np.testing.assert_allclose(node_transform(viewer, "carmkin/cone"), MOTORIZED.fk(q_to), atol=1e-9)
     pairs = viewer.show_distances(q)
-    assert [(d.part, d.obstacle) for d in pairs] == list(CollisionScene.from_system(MOTORIZED).pairs)
+    assert [(d.part, d.obstacle) for d in pairs] == list(World(MOTORIZED).pairs)
 
 
 def test_scene_frame_is_upright_table_frame():
@@ -300,7 +301,7 @@ def test_distance_pairs_are_the_collision_policy():
     """One policy: the viewer colours exactly the pairs the planner and the validity report check."""
     checker = DistanceChecker(PRESET)
     pairs = [(d.part, d.obstacle) for d in checker.distances(Q_MID)]
-    assert pairs == list(CollisionScene.from_system(PRESET).pairs)
+    assert pairs == list(World(PRESET).pairs)
     # and that policy, written out: moving C-arm parts against the table top and the floor
     moving = {"dh_frame_2", "dh_frame_3", "dh_frame_4", "dh_frame_5", "dh_frame_6", "xray_source", "detector"}
     parts = {g.name for g in checker.collision_model.geometryObjects if link_of(g.name) in moving}

@@ -1,4 +1,4 @@
-"""Collision scene: the documented pair list, signed distances, and the distance Jacobian."""
+"""The world: the documented pair list, signed distances, grouped clearance, and the distance Jacobian."""
 
 import numpy as np
 import pinocchio as pin
@@ -7,13 +7,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from strategies import PRESET
 
-from carmkin.robot.collision import (
-    CollisionScene,
-    CollisionSceneError,
-    Obstacle,
-    carm_pair_names,
-    link_of,
-)
+from carmkin.errors import CollisionSceneError, PatientModelError
+from carmkin.robot.collision import Obstacle, carm_pair_names, link_of
+from carmkin.world import World
 
 SOURCE_HOUSING = PRESET.body.source_housing  # box in the source frame, centre at z = -hs_z/2 + 0.03
 
@@ -25,7 +21,7 @@ def source_point(q, local):
 
 
 def test_pair_list_excludes_adjacent_and_irrelevant_pairs():
-    scene = CollisionScene.from_system(PRESET)
+    scene = World(PRESET)
     links = set(scene.link_pairs())
     for excluded in [("table", "carm_cart"), ("carm_cart", "table"), ("dh_frame_3", "dh_frame_4"),
                      ("dh_frame_4", "dh_frame_3"), ("dh_frame_2", "carm_cart"), ("dh_frame_2", "floor"),
@@ -40,8 +36,8 @@ def test_pair_list_excludes_adjacent_and_irrelevant_pairs():
 
 def test_obstacles_are_paired_with_every_moving_part():
     box = Obstacle.box("patient", (0.4, 0.25, 1.6), (0.0, -0.1, 0.0))
-    scene = CollisionScene.from_system(PRESET, [box])
-    plain = CollisionScene.from_system(PRESET)
+    scene = World(PRESET, [box])
+    plain = World(PRESET)
     moving = {a for a, _ in plain.pairs}
     assert {a for a, b in scene.pairs if b == "patient"} == moving
     assert len(scene) == len(plain) + len(moving)
@@ -59,7 +55,7 @@ def test_signed_distance_to_a_box_beside_the_source_housing(gap):
     hx, _, hz = SOURCE_HOUSING
     center = source_point(q, [hx / 2 + gap + 0.05, 0.0, -hz / 2 + 0.03])
     R = PRESET.fk(q)[:3, :3]
-    scene = CollisionScene.from_system(PRESET, [Obstacle.box("probe", (0.1, 0.1, 0.1), center, R)])
+    scene = World(PRESET, [Obstacle.box("probe", (0.1, 0.1, 0.1), center, R)])
     distances = scene.distances(q=q)
     k = scene.pairs.index(("xray_source_0", "probe"))
     assert distances[k] == pytest.approx(gap, abs=1e-5)
@@ -71,10 +67,26 @@ def test_bad_obstacles_are_rejected():
     with pytest.raises(CollisionSceneError, match="positive"):
         Obstacle.box("x", (0.1, -0.1, 0.1))
     with pytest.raises(CollisionSceneError, match="already used"):
-        CollisionScene.from_system(PRESET, [Obstacle.box("table_0", (0.1, 0.1, 0.1))])
-    with pytest.raises(CollisionSceneError, match="no geometry"):
-        model, gm, _ = PRESET.pinocchio()
-        CollisionScene(model, gm, [("table_0", "nonexistent")])
+        World(PRESET, [Obstacle.box("table_0", (0.1, 0.1, 0.1))])
+    with pytest.raises(PatientModelError, match="patient"):
+        World(PRESET, ["not an obstacle"])
+    with pytest.raises(CollisionSceneError, match="system"):
+        World("siremobile-iso-c3d")
+
+
+def test_grouped_clearance_is_the_minimum_per_group_of_every_pair():
+    """World.grouped against the pair distances grouped by hand from the pair names."""
+    patient = [Obstacle.box("body", (0.4, 0.25, 1.6), (0.0, -0.1, 0.0)), Obstacle("head", "sphere", (0.1,), np.eye(4))]
+    world = World(PRESET, patient)
+    rng = np.random.default_rng(4)
+    for _ in range(20):
+        q = PRESET.lower + rng.uniform(size=6) * (PRESET.upper - PRESET.lower)
+        d = world.distances(q=q)
+        by_hand = {"patient": min(x for x, (_, b) in zip(d, world.pairs) if b in ("body", "head")),
+                   "table": min(x for x, (_, b) in zip(d, world.pairs) if b.startswith("table_")),
+                   "floor": min(x for x, (_, b) in zip(d, world.pairs) if b.startswith("floor_"))}
+        assert world.grouped(q) == pytest.approx(by_hand, abs=2e-6)
+        assert min(by_hand.values()) == pytest.approx(float(world.clearance(q)[0]), abs=2e-6)
 
 
 @settings(max_examples=40)
@@ -83,7 +95,7 @@ def test_distance_jacobian_matches_finite_differences(u, seed):
     """d' = J dq for the near pairs, checked by central differences (box-box distances are only
     piecewise smooth: a 15 % relative tolerance; a sign or frame error gives 200 %)."""
     q = PRESET.lower + np.array(u) * (PRESET.upper - PRESET.lower)
-    scene = CollisionScene.from_system(PRESET, [Obstacle.box("patient", (0.4, 0.25, 1.6), (0.0, -0.1, 0.0))])
+    scene = World(PRESET, [Obstacle.box("patient", (0.4, 0.25, 1.6), (0.0, -0.1, 0.0))])
     model = scene.model
     data = model.createData()
     pin.computeJointJacobians(model, data, q)
@@ -102,8 +114,8 @@ def test_one_policy_for_every_preset():
     links (table_tilt_link, ...) carry no geometry of their own, so its pairs are the plain preset's."""
     import carmkin
 
-    motorized = CollisionScene.from_system(carmkin.load_preset("siremobile-iso-c3d-motorized-table"))
-    assert motorized.pairs == CollisionScene.from_system(PRESET).pairs
+    motorized = World(carmkin.load_preset("siremobile-iso-c3d-motorized-table"))
+    assert motorized.pairs == World(PRESET).pairs
     for a, b in motorized.link_pairs():
         assert a in ("dh_frame_2", "dh_frame_3", "dh_frame_4", "dh_frame_5", "dh_frame_6", "xray_source", "detector")
         assert b in ("table", "floor") and (a, b) != ("dh_frame_2", "floor")

@@ -1,6 +1,6 @@
 """Clearance of many configurations at once: bounds for every pair, exact coal distances where they decide.
 
-:class:`BoundedScene` wraps a :class:`~carmkin.robot.collision.CollisionScene` of a system. For every
+:class:`PairBounds` serves :meth:`carmkin.world.World.clearance` and :meth:`~carmkin.world.World.nearest`. For every
 configuration and pair it computes a **lower bound** of the pair's signed distance, vectorised over the
 configurations (link poses from the system's closed form, :func:`link_poses`):
 
@@ -14,9 +14,9 @@ configurations (link poses from the system's closed form, :func:`link_poses`):
 Each bound is lowered by :data:`BOUND_SLACK` for coal's round-off; ``bound <= coal's signed distance`` for
 every pair (tested). Then, per configuration, **branch and bound**: coal computes the pairs in the order of
 their bounds until the next bound is no smaller than the smallest distance found. The value is the minimum
-over all pairs of coal's distance (the same shapes and request as :meth:`CollisionScene.distances`), i.e.
+over all pairs of coal's distance (the same shapes and request as :meth:`World.distances`), i.e.
 exact to coal's GJK/EPA tolerance (1e-6 m): two coal calls on one pair differ by up to that, as their
-initial guesses do. Where the smallest bound is already at least ``exact_below``, no coal call is made and
+initial guesses do. ``World.distances`` (coal on every pair) is the independent route the tests hold it to. Where the smallest bound is already at least ``exact_below``, no coal call is made and
 that bound is returned (enough to tell a configuration clear of a margin).
 
 Written here because coal's broad phase answers "which pairs collide", not "the smallest distance of a
@@ -30,12 +30,7 @@ import pinocchio as pin
 
 from carmkin.errors import InvalidConfigurationError
 
-from .collision import CollisionScene
-
-#: Coal's GJK/EPA stop within their tolerances (``gjk_tolerance`` = ``epa_tolerance`` = 1e-6 by default): near
-#: contact a box pair 4e-7 m apart is reported at 0 (found by the tests). Every bound is lowered by twice that
-#: tolerance (m), so that a pruned pair is farther than the margin in coal's own numbers too.
-BOUND_SLACK = 2e-6
+from .tolerances import BOUND_SLACK
 #: Shapes whose signed point distance the bounds compute exactly.
 POINT_DISTANCE_SHAPES = ("Box", "Capsule", "Sphere")
 
@@ -63,22 +58,23 @@ def bounding_sphere(obj) -> tuple[np.ndarray, float]:
     return obj.placement.act(np.asarray(geometry.aabb_center, dtype=float)), float(geometry.aabb_radius)
 
 
-class BoundedScene:
-    """Bounds and exact distances over the pairs of ``scene``, the collision scene of ``system``."""
+class PairBounds:
+    """Bounds and exact distances over the pairs of ``world`` (a :class:`carmkin.world.World`)."""
 
-    def __init__(self, scene: CollisionScene, system) -> None:
-        self.scene, self.system = scene, system
-        self.model = model = scene.model
+    def __init__(self, world) -> None:
+        self.world = world
+        self.geometry_model = world.geometry_model
+        self.model = model = world.model
         self.data = model.createData()
-        self.geometry_data = pin.GeometryData(scene.geometry_model)  # its own: the scene's stays untouched
+        self.geometry_data = pin.GeometryData(world.geometry_model)  # its own: the world's stays untouched
         for request in self.geometry_data.distanceRequests:
             request.enable_signed_distance = True
-        objects = scene.geometry_model.geometryObjects
+        objects = world.geometry_model.geometryObjects
         spheres = [bounding_sphere(o) for o in objects]
         self.centres = np.array([c for c, _ in spheres]).reshape(-1, 3)  # in the parent joint's frame
         self.radii = np.array([r for _, r in spheres])
         self.parent = np.array([o.parentJoint for o in objects], dtype=int)
-        pairs = scene.geometry_model.collisionPairs
+        pairs = world.geometry_model.collisionPairs
         self.first = np.array([p.first for p in pairs], dtype=int)
         self.second = np.array([p.second for p in pairs], dtype=int)
         self.pair_radius = self.radii[self.first] + self.radii[self.second]
@@ -132,7 +128,7 @@ class BoundedScene:
         return self._bounds(self._configurations(qs))
 
     def _bounds(self, qs: np.ndarray) -> np.ndarray:
-        frames, _ = link_poses(self.system, qs)  # (N, 6, 4, 4)
+        frames, _ = link_poses(self.world.system, qs)  # (N, 6, 4, 4)
         # Components as (3, N, G) arrays: numpy is slow on a last axis of length 3.
         F = frames[:, self._frame_of_moving]
         c = self._moving_local
@@ -182,7 +178,7 @@ class BoundedScene:
         bound = np.take_along_axis(bound, order, axis=1)
         out[:] = bound[:, 0]
         model, data = self.model, self.data
-        gm, gd = self.scene.geometry_model, self.geometry_data
+        gm, gd = self.geometry_model, self.geometry_data
         for i in np.flatnonzero(bound[:, 0] < exact_below).tolist():
             pin.forwardKinematics(model, data, qs[i])
             pin.updateGeometryPlacements(model, data, gm, gd)
@@ -197,10 +193,6 @@ class BoundedScene:
                         break
             out[i], which[i] = best, pair
         return out, which
-
-    def min_distance(self, qs, exact_below: float = np.inf) -> np.ndarray:
-        """(N,) the distances of :meth:`nearest`."""
-        return self.nearest(qs, exact_below)[0]
 
     def _configurations(self, qs) -> np.ndarray:
         qs = np.asarray(qs, dtype=float)

@@ -1,12 +1,11 @@
-"""The collision world of the view search: the system's scene with the patient, built once.
+"""The beam screen of the view search: cheap lower bounds for the parts rigid with the X-ray source.
 
-:class:`World` holds one :class:`carmkin.robot.collision.CollisionScene` of a system with the patient (and
-any other obstacles). :meth:`World.clearances` is the exact minimum signed distance (m) over the scene's
-pairs for many configurations (:class:`carmkin.robot.clearance.BoundedScene`: bounds for every pair at once,
-coal where they decide). :meth:`World.beam_bound` is the cheap ranking score of the view search: a lower
-bound on the distance of the source housing and of the detector (spheres about the beam axis) to the fixed
-environment (table top and obstacles), vectorised over source positions. :attr:`World.roll_lever` serves the
-contact regions of :mod:`carmkin.views.regions`. Lengths in m.
+:meth:`BeamScreen.bound` is the ranking score of the view search (:mod:`carmkin.views.search`): a lower bound
+on the distance of the source housing and of the detector (spheres about the beam axis) to the fixed
+environment (table top and obstacles), vectorised over source positions. :attr:`BeamScreen.roll_lever`
+serves the certified contact regions of :mod:`carmkin.views.regions`. Written here, beside the world's
+other bounds, because it is a bound on the world's distances; exact answers always come from
+:meth:`carmkin.world.World.nearest`. Lengths in m, table frame 0.
 """
 
 from __future__ import annotations
@@ -14,65 +13,44 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from carmkin.robot.clearance import POINT_DISTANCE_SHAPES, BoundedScene
-from carmkin.robot.collision import CollisionScene, link_of
+from .obstacles import link_of
+from .swept import bounding_radius
+
+#: Shapes coal treats as convex (the point-distance shapes of :mod:`carmkin.world.bounds` and these).
+_CONVEX_SHAPES = ("Box", "Capsule", "Sphere", "Cylinder", "Cone", "Ellipsoid")
+#: Frame of the X-ray source.
+SOURCE_FRAME = "xray_source"
 
 
-#: Shapes coal treats as convex (with :data:`carmkin.robot.clearance.POINT_DISTANCE_SHAPES`).
-_CONVEX_SHAPES = POINT_DISTANCE_SHAPES + ("Cylinder", "Cone", "Ellipsoid")
+class BeamScreen:
+    """Bounds for the parts of ``world`` that ride with the source (built once per world)."""
 
-
-class World:
-    """The collision world of ``system`` with ``obstacles`` (table frame), built once."""
-
-    def __init__(self, system, obstacles=()) -> None:
-        self.system = system
-        self.obstacles = tuple(obstacles)
-        self.scene = CollisionScene.from_system(system, self.obstacles)
-        self.model = self.scene.model
-        objects = self.scene.geometry_model.geometryObjects
-        self.bounded = BoundedScene(self.scene, system)
-        names = {o.name for o in self.obstacles}
+    def __init__(self, world) -> None:
+        self.world = world
+        model, geometry_model = world.model, world.geometry_model
+        objects = geometry_model.geometryObjects
+        names = {o.name for o in world.obstacles}
         self._environment = _Fixed([o for o in objects if o.name in names or link_of(o.name) == "table"])
         # Every geometry's pose in the source frame at the zero configuration (for the beam spheres and levers).
-        from carmkin.qp.options import SOURCE_FRAME
-
-        data, geometry = self.model.createData(), pin.GeometryData(self.scene.geometry_model)
-        pin.framesForwardKinematics(self.model, data, pin.neutral(self.model))
-        pin.updateGeometryPlacements(self.model, data, self.scene.geometry_model, geometry)
-        source = self.model.getFrameId(SOURCE_FRAME)
+        data, geometry = model.createData(), pin.GeometryData(geometry_model)
+        pin.framesForwardKinematics(model, data, pin.neutral(model))
+        pin.updateGeometryPlacements(model, data, geometry_model, geometry)
+        source = model.getFrameId(SOURCE_FRAME)
         in_source = [data.oMf[source].actInv(M) for M in geometry.oMg]
         self._beam_parts = self._beam_spheres(objects, in_source)
-        self.roll_lever = self._roll_levers(objects, in_source, self.model.frames[source].parentJoint)
-
-    # --- exact clearance ---------------------------------------------------------------------------------
-    def clearance(self, q, stop_below: float = -np.inf) -> tuple[float, int]:
-        """``(distance, pair index)``: the exact smallest signed distance (m) over the scene's pairs at q; with
-        ``stop_below``, the first pair found closer than it ends the search (a distance below it, not the
-        smallest)."""
-        d, pair = self.clearances(np.asarray(q, dtype=float)[None], stop_below)
-        return float(d[0]), int(pair[0])
-
-    def clearances(self, Q, stop_below: float = -np.inf) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`clearance` of configurations Q (M, nq): distances (M,) (m) and pair indices (M,) (−1: no
-        pair); :meth:`carmkin.robot.clearance.BoundedScene.nearest`."""
-        return self.bounded.nearest(np.asarray(Q, dtype=float).reshape(-1, self.model.nq), stop_below=stop_below)
-
-    def pair_names(self, k: int) -> tuple[str, str]:
-        return self.scene.pairs[k]
+        self.roll_lever = self._roll_levers(objects, in_source, model.frames[source].parentJoint)
 
     def _roll_levers(self, objects, in_source, last: int) -> np.ndarray:
         """(P,) per pair: the largest distance (m) of its first geometry's points from the beam axis when that
         geometry rides on the orbital joint ``last`` (rigid with the source) and its second is a convex shape
         fixed to the table frame; inf otherwise (the pair's motion is not set by distance and roll alone).
         ``in_source``: every geometry's pose in the source frame."""
-        from carmkin.sweeps.clearance import bounding_radius
-
         convex = [type(o.geometry).__name__ in _CONVEX_SHAPES or type(o.geometry).__name__.startswith("Convex")
                   for o in objects]
-        first, second = self.bounded.first, self.bounded.second
-        lever = np.full(len(first), np.inf)
-        for k, (a, b) in enumerate(zip(first.tolist(), second.tolist())):
+        pairs = self.world.geometry_model.collisionPairs
+        lever = np.full(len(pairs), np.inf)
+        for k, pair in enumerate(pairs):
+            a, b = pair.first, pair.second
             if objects[a].parentJoint != last or objects[b].parentJoint != 0 or not (convex[a] and convex[b]):
                 continue
             centre = in_source[a].translation
@@ -94,7 +72,7 @@ class World:
                 parts.append((float(local[2]), float(o.geometry.aabb_radius) + float(np.hypot(local[0], local[1]))))
         return parts
 
-    def beam_bound(self, sources: np.ndarray, directions: np.ndarray) -> np.ndarray:
+    def bound(self, sources: np.ndarray, directions: np.ndarray) -> np.ndarray:
         """Lower bound (M,) on the distance (m) from the source housing and detector to the table top and the
         obstacles, for sources (M, 3) and beam directions (M, 3) in the table frame."""
         out = np.full(len(sources), np.inf)

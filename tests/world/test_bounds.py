@@ -1,5 +1,5 @@
-"""Broad phase + exact narrow phase (carmkin.robot.clearance) against every pair's coal distance computed by
-Pinocchio's own CollisionScene.distances (the independent route): the bounds never exceed a distance, the
+"""Broad phase + exact narrow phase (carmkin.world.bounds: World.clearance / World.nearest) against every pair's
+coal distance computed by Pinocchio's computeDistances through World.distances (the independent route): the bounds never exceed a distance, the
 smallest distance is the same number, the pairs below a margin are the same pairs."""
 
 import coal
@@ -12,8 +12,8 @@ from strategies import motorized_systems, systems
 import carmkin
 from carmkin.errors import InvalidConfigurationError
 from carmkin.model.sampling import random_configurations
-from carmkin.robot.clearance import BOUND_SLACK, BoundedScene
-from carmkin.robot.collision import CollisionScene, Obstacle
+from carmkin.world import Obstacle, World
+from carmkin.world.tolerances import BOUND_SLACK
 
 #: Two coal calls on the same pair agree to its GJK/EPA tolerance (1e-6 m), not to the last digit: the
 #: result depends on the initial guess each caller keeps (measured: 3.4e-7 m). Exact means this.
@@ -39,9 +39,9 @@ def degenerate(scene) -> bool:
 
 def check_scene(system, seed: int, n: int = 40, property_based: bool = True):
     rng = np.random.default_rng(seed)
-    scene = CollisionScene.from_system(system, obstacles(rng))
+    scene = World(system, obstacles(rng))
     assert not degenerate(scene)
-    bounded = BoundedScene(scene, system)
+    bounded = scene.bounds
     qs = random_configurations(rng, system, n, beyond=0.0)
     full = np.array([scene.distances(q=q) for q in qs])
     bounds = bounded.lower_bounds(qs)
@@ -49,15 +49,15 @@ def check_scene(system, seed: int, n: int = 40, property_based: bool = True):
     distance, pair = bounded.nearest(qs)
     np.testing.assert_allclose(distance, full.min(axis=1), rtol=0, atol=SAME_DISTANCE)
     np.testing.assert_allclose(full[np.arange(n), pair], full.min(axis=1), rtol=0, atol=SAME_DISTANCE)
-    np.testing.assert_allclose(bounded.min_distance(qs), distance, rtol=0, atol=SAME_DISTANCE)
+    np.testing.assert_allclose(scene.clearance(qs), distance, rtol=0, atol=SAME_DISTANCE)
     margin = float(rng.uniform(0.0, 0.1))
-    cheap = bounded.min_distance(qs, exact_below=margin)
+    cheap = scene.clearance(qs, exact_below=margin)
     below = full.min(axis=1) < margin
     np.testing.assert_allclose(cheap[below], full.min(axis=1)[below], rtol=0, atol=SAME_DISTANCE)
     assert np.all(cheap[~below] >= margin - SAME_DISTANCE)
     assert np.all(cheap[~below] <= full.min(axis=1)[~below] + SAME_DISTANCE)
     # With a stop: a distance below it is its pair's own; one above it is the smallest.
-    stopped, stop_pair = bounded.nearest(qs, stop_below=margin)
+    stopped, stop_pair = scene.nearest(qs, stop_below=margin)
     hit = stopped < margin
     np.testing.assert_allclose(stopped[hit], full[hit, stop_pair[hit]], rtol=0, atol=SAME_DISTANCE)
     np.testing.assert_allclose(stopped[~hit], full[~hit].min(axis=1), rtol=0, atol=SAME_DISTANCE)
@@ -82,8 +82,8 @@ def test_motorized_preset():
 
 def test_bad_configurations_are_refused():
     system = carmkin.load_preset("siremobile-iso-c3d")
-    bounded = BoundedScene(CollisionScene.from_system(system), system)
+    world = World(system)
     for bad in (np.zeros(5), np.full((2, 6), np.nan), np.zeros((2, 2, 6))):
-        for call in (bounded.min_distance, bounded.nearest, bounded.lower_bounds):
+        for call in (world.clearance, world.nearest, world.bounds.lower_bounds):
             with pytest.raises(InvalidConfigurationError, match="qs"):
                 call(bad)
