@@ -1,6 +1,6 @@
 """Distances between the C-arm and its surroundings, for colouring the viewer.
 
-The pairs are those of :mod:`carmkin.robot.collision` (:meth:`CollisionScene.from_system`: every moving C-arm
+The pairs are those of the one world (:class:`carmkin.world.World`: every moving C-arm
 part against the table top and the floor, the column against the floor left out), the same pairs the
 planner and the §4.4.3 validity report use: what the screen paints red is what validity calls a collision.
 Signed distances (coal through Pinocchio), metres, witness points in the table frame 0.
@@ -16,7 +16,7 @@ import pinocchio as pin
 from carmkin.errors import InvalidConfigurationError
 from carmkin.model.kinematics import check_configuration
 from carmkin.model.system import CArmSystem
-from carmkin.robot.collision import CollisionScene
+from carmkin.world import World
 
 
 @dataclass(frozen=True)
@@ -43,12 +43,12 @@ class PairDistance:
 class DistanceChecker:
     """Signed distances of the C-arm parts to the table top and the floor (table frame, metres).
 
-    ``scene`` is the :class:`~carmkin.robot.collision.CollisionScene` of the system; ``collision_model`` and
+    ``scene`` is the :class:`carmkin.world.World` of the system; ``collision_model`` and
     ``collision_data`` are its geometry model and data, placed at the configuration of the last call.
     """
 
     def __init__(self, system: CArmSystem) -> None:
-        self.scene = CollisionScene.from_system(system)
+        self.scene = World(system)
         self.model = self.scene.model
         self.collision_model = self.scene.geometry_model
         self.collision_data = self.scene.geometry_data
