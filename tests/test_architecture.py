@@ -18,6 +18,7 @@ ROOT = Path(__file__).resolve().parents[1]
 LAYERS = (
     ("carmkin.errors", "carmkin.validation", "carmkin.extras", "carmkin.transforms"),
     ("carmkin.model", "carmkin.presets"),
+    ("carmkin.world",),
     ("carmkin.robot",),
     ("carmkin.analytic", "carmkin.analytic_ik"),
     ("carmkin.qp", "carmkin.qp_ik", "carmkin.singularity"),

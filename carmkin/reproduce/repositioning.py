@@ -94,14 +94,14 @@ def make_room(system, model: ErrorModel, rng: np.random.Generator, guidance=None
 
     from carmkin.reposition.experiment import ExperimentConfig
     from carmkin.reposition.world import World
-    from carmkin.world import World
+    from carmkin.world import World as CollisionWorld
 
     system = square_pixel_system(system)
     noise = filtered_noise(model.corner_noise_px, model.frames)
     world = World.create(system, rng, mount_error=model.mount_error, corner_noise_px=noise)
     if calibrate:
         world = world.calibrated(np.zeros(system.nq), rng, positions=model.calibration_positions)
-    return Room(system, model, world, model.camera_offset(rng), World(system),
+    return Room(system, model, world, model.camera_offset(rng), CollisionWorld(system),
                 ExperimentConfig() if guidance is None else dataclasses.replace(ExperimentConfig(), guidance=guidance))
 
 

@@ -49,7 +49,8 @@ class SweepFailure:
         if self.kind is Limit.JOINT_LIMIT:
             what = f"joint {self.joint} leaves its range"
         elif self.kind is Limit.CONTACT:
-            what = f"{self.pair[0]} comes within {self.distance * 1e3:.1f} mm of {self.pair[1]}"
+            what = (f"{self.pair[0]} comes within {self.distance * 1e3:.1f} mm of {self.pair[1]}" if self.distance >= 0
+                    else f"{self.pair[0]} enters {self.pair[1]} by {-self.distance * 1e3:.1f} mm")
         else:
             what = "the pose has no joint solution"
         arc = ("no feasible arc" if self.feasible is None else
@@ -302,7 +303,7 @@ def plan_sweep(system, target, arc_deg: float = 190.0, n_views: int = 100, patie
             first = first or SweepFailure(kind, float(phi[k]), k, None, joint=_worst(system, q[k]))
             continue
         if k and ok[k - 1]:  # the segment from the previous frame, certified over its whole length
-            check = world.swept(q[k - 1], q[k], margin=margin, tolerance=tolerance)
+            check = world.swept(q[k - 1], q[k], margin=margin, tolerance=tolerance, path_min=sampled)
             samples += check.samples
             sampled = min(sampled, check.sampled_min)
             bound = min(bound, check.min_distance)

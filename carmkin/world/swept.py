@@ -130,13 +130,15 @@ class Swept:
 
 
 def sweep(world, q_a, q_b, margin: float | None = None, tolerance: float = DEFAULT_TOLERANCE,
-          stop_at_contact: bool = False) -> Swept:
+          stop_at_contact: bool = False, path_min: float = math.inf) -> Swept:
     """The swept clearance of ``q_a → q_b`` (nq, m and rad) in ``world`` by conservative advancement.
 
     ``margin`` (m): samples within it (+ :data:`CONTACT_RESOLUTION`) are contacts, and far from it the steps
     are longer; ``tolerance`` (m): how far below the true minimum ``min_distance`` may be;
     ``stop_at_contact``: end at the first contact (``checked_to`` < 1 then) instead of certifying the whole
-    segment (a yes/no question answered sooner)."""
+    segment (a yes/no question answered sooner); ``path_min`` (m): the smallest exact distance already sampled
+    on other segments of the same path (a sweep's earlier frame pairs): the steps then only keep the bound
+    within ``tolerance`` of the path's minimum, not of this segment's (``min_distance`` stays certified)."""
     nq = world.model.nq
     q_a = real_array(q_a, "q_a", (nq,), error=CollisionSceneError, limit=JOINT_VALUE_LIMIT, unit="m, rad")
     q_b = real_array(q_b, "q_b", (nq,), error=CollisionSceneError, limit=JOINT_VALUE_LIMIT, unit="m, rad")
@@ -162,7 +164,7 @@ def sweep(world, q_a, q_b, margin: float | None = None, tolerance: float = DEFAU
         if samples >= MAX_SAMPLES:
             bound = min(bound, float(d[k] - accuracy(d[k])))
             return Swept(bound, best, pair, samples, margin, tolerance, contact_t, contact_pair, contact_distance, t)
-        tau = best - tolerance
+        tau = min(best, path_min) - tolerance
         if margin is not None and contact_t is None:
             tau = max(margin, tau)
         eps = accuracy(d)

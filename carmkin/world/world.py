@@ -152,11 +152,11 @@ class World:
     def grouped(self, q) -> dict[str, float]:
         """The exact smallest signed distance (m) at ``q`` (nq,) to each of :data:`GROUPS` present."""
         d = self.distances(q=q)
-        out: dict[str, float] = {}
+        out = {group: np.inf for group in GROUPS}
         for value, group in zip(d.tolist(), self.group):
-            if group in GROUPS:
-                out[group] = min(out.get(group, np.inf), value)
-        return out
+            if group in out:
+                out[group] = min(out[group], value)
+        return {group: value for group, value in out.items() if value < np.inf}
 
     def proximity(self, distances: np.ndarray, threshold: float) -> Proximity:
         """Witness points and normals of the pairs with ``distance < threshold`` (after :meth:`distances`)."""
@@ -214,13 +214,13 @@ class World:
         return speed_bounds(self)
 
     def swept(self, q_a, q_b, margin: float | None = None, tolerance: float = DEFAULT_TOLERANCE,
-              stop_at_contact: bool = False):
+              stop_at_contact: bool = False, path_min: float = np.inf):
         """The swept clearance of the straight joint-space segment ``q_a → q_b`` (nq,):
         :func:`carmkin.world.swept.sweep` (a :class:`~carmkin.world.swept.Swept` whose ``min_distance`` is a
         certified lower bound of the true minimum, within ``tolerance`` of it)."""
         from .swept import sweep
 
-        return sweep(self, q_a, q_b, margin, tolerance, stop_at_contact)
+        return sweep(self, q_a, q_b, margin, tolerance, stop_at_contact, path_min)
 
     def moves(self, q_from, q_to, order: Sequence[str] | None = None, clearance: float = DEFAULT_PATH_CLEARANCE):
         """Joint-by-joint moves from ``q_from`` to ``q_to`` (nq,): :func:`carmkin.world.moves.joint_moves`."""
