@@ -119,6 +119,11 @@ def run(args: argparse.Namespace) -> int:
 def _export(sweep, paths, plot) -> None:
     from carmkin.sweeps import export
 
+    if not sweep.success:  # a failed sweep's frames include poses the machine cannot take: no geometry files
+        skipped = [p for name, p in paths.items() if p and name != "html"]
+        if skipped:
+            print(f"not written (the sweep failed; plan its feasible arc instead): {', '.join(map(str, skipped))}")
+        paths = {name: (p if name == "html" else None) for name, p in paths.items()}
     if paths["astra"]:
         np.save(paths["astra"], export.astra_vectors(sweep))
         print(f"wrote {paths['astra']} (ASTRA cone_vec, mm)")
