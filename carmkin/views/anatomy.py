@@ -237,3 +237,25 @@ def check_inside_patient(points, patient, name: str = "centreline") -> None:
         raise AnatomyPlacementError(f"{name}: point {k} {np.round(P[k] * 1e3, 1).tolist()} mm (table frame) lies "
                                     "outside the patient: place the anatomy in the patient's frame "
                                     "(centreline_from_patient) or check its units")
+
+
+#: Radius (m) of the synthetic heart the coronary trees of :func:`synthetic_tree` wind around.
+HEART_RADIUS = 0.05
+
+
+def synthetic_tree(centre, seed: int = 0, vessels: int = 4, points: int = 40) -> list[Centreline]:
+    """A synthetic coronary tree: ``vessels`` helical segments (each 40–110 mm, ``points`` points) on a
+    sphere of :data:`HEART_RADIUS` about ``centre`` (3,) m, table frame — polar and azimuthal angles linear in
+    the arc parameter, so each winds around the heart like an epicardial artery. The first is the vessel of
+    interest, the others overlap it in some views. Deterministic in ``seed``."""
+    centre = real_array(centre, "centre", (3,), error=CentrelineError, unit="m")
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0.0, 1.0, points)[:, None]
+    out = []
+    for k in range(vessels):
+        theta = rng.uniform(0.5, 1.2) + rng.uniform(0.4, 1.2) * t * rng.choice([-1, 1])
+        phi = rng.uniform(0, 2 * np.pi) + rng.uniform(0.5, 1.6) * t * rng.choice([-1, 1])
+        radius = HEART_RADIUS * (1.0 + 0.1 * rng.uniform(-1, 1))
+        xyz = np.hstack((np.sin(theta) * np.cos(phi), np.cos(theta), np.sin(theta) * np.sin(phi)))
+        out.append(Centreline(centre + radius * xyz, None, "vessel of interest" if k == 0 else f"vessel {k}"))
+    return out
