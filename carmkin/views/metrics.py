@@ -23,7 +23,8 @@ foreshortening is the same ratio for each polyline segment, its maximum.
 
 **Overlap** (Green et al. 2005: percent of the segment overlapped by other vessels): the projected centreline
 is sampled on every segment of the polyline at :data:`SAMPLE_SPACING_PX` pixels or less (the same subdivision
-in every view); the pixels holding a sample are the centreline's pixels; a pixel is covered when its centre lies
+in every view; at 1 px consecutive samples round to the same or 8-adjacent pixels, so the pixels form an
+8-connected digital curve, as a line rasteriser draws it); the pixels holding a sample are the centreline's pixels; a pixel is covered when its centre lies
 inside the projected tube of another vessel: the union over that vessel's polyline segments of the 2D capsule
 about the projected segment with radius ``r / z_mid`` (normalised; ``r`` the segment's mean radius, ``z_mid``
 the mean depth of its ends). Overlap = covered pixels / centreline pixels (pixels on the unbounded grid of the
@@ -37,13 +38,13 @@ import numpy as np
 from carmkin.errors import ViewError
 
 #: Largest spacing (px) of the samples of the projected centreline (overlap).
-SAMPLE_SPACING_PX = 0.5
+SAMPLE_SPACING_PX = 1.0
 #: Tube radius (m) of the other vessels when no radii are given (a mid-size coronary branch, 3 mm across).
 DEFAULT_RADIUS = 1.5e-3
 #: Smallest depth (m) in front of the source a projected point may have.
 MIN_DEPTH = 1e-3
 #: Sample × view elements processed per chunk of the overlap (memory bound, ~100 MB).
-CHUNK_ELEMENTS = 1 << 19
+CHUNK_ELEMENTS = 1 << 15
 #: Longest projected piece (px) the other vessels' segments are cut into for the overlap's grid join.
 PIECE_PX = 8.0
 
@@ -118,26 +119,31 @@ def _pixels(xy, K):
 
 def _tube_pieces(others, radii, poses, K):
     """The others' polyline segments cut into equal 3D pieces (each no longer than :data:`PIECE_PX` projected
-    in any view): ends A, B (S, 3) m and their parent segment's ends' mean depth is used for the radius, so
-    the union of the pieces' capsules is the parent's capsule. Returns A, B, parent ends Pa, Pb, radius (S,)."""
-    A, B, Pa, Pb, R = [], [], [], [], []
+    in any view; the union of the pieces' capsules is the segment's, as they keep its radius): ``vertices``
+    (V, 3) m, and per piece the indices of its ends ``ia``, ``ib`` and of its segment's ends ``pa``, ``pb``
+    into them, and the segment's mean radius (m)."""
+    vertices, ia, ib, pa, pb, R, base = [], [], [], [], [], [], 0
     for points, r in zip(others, radii):
         points = np.asarray(points, dtype=float)
         r = np.broadcast_to(np.asarray(r, dtype=float), (len(points),))
         n = subdivisions(points, poses, K, PIECE_PX)
         k = np.repeat(np.arange(len(n)), n)
         f = np.concatenate([np.arange(m) / m for m in n])
-        g = np.concatenate([np.arange(1, m + 1) / m for m in n])
-        a, b = points[:-1][k], points[1:][k]
-        A.append(a + f[:, None] * (b - a)), B.append(a + g[:, None] * (b - a))
-        Pa.append(a), Pb.append(b), R.append((0.5 * (r[:-1] + r[1:]))[k])
-    if not A:
-        return (np.zeros((0, 3)),) * 4 + (np.zeros(0),)
-    return np.vstack(A), np.vstack(B), np.vstack(Pa), np.vstack(Pb), np.concatenate(R)
+        inner = points[:-1][k] + f[:, None] * (points[1:] - points[:-1])[k]       # each piece's first end
+        vertices += [points, inner]
+        first = base + len(points) + np.arange(len(k))                           # index of each piece's start
+        ia.append(first)
+        ib.append(np.where(np.r_[k[1:] == k[:-1], False], first + 1, base + k + 1))
+        pa.append(base + k), pb.append(base + k + 1), R.append((0.5 * (r[:-1] + r[1:]))[k])
+        base += len(points) + len(k)
+    if not vertices:
+        return np.zeros((0, 3)), *(np.zeros(0, dtype=int),) * 4, np.zeros(0)
+    return (np.vstack(vertices), *(np.concatenate(v) for v in (ia, ib, pa, pb)), np.concatenate(R))
 
 
 def subdivisions(points, poses, K, spacing: float = SAMPLE_SPACING_PX) -> np.ndarray:
-    """Samples per polyline segment (N-1,) so that no projected sample step exceeds ``spacing`` px in any view."""
+    """Samples per polyline segment (N-1,) so that no projected sample step exceeds ``spacing`` px in any view
+    (at 1 px, consecutive samples fall in the same or 8-adjacent pixels: an 8-connected digital curve)."""
     px = _pixels(_normalised(camera_points(points, poses)), np.asarray(K, dtype=float))
     longest = np.linalg.norm(np.diff(px, axis=1), axis=2).max(axis=0)
     return np.maximum(1, np.ceil(longest / spacing)).astype(int)
@@ -161,18 +167,25 @@ def overlap(points, others, poses, K, radii=DEFAULT_RADIUS, counts=None) -> np.n
     seg, t = np.append(seg, len(counts) - 1), np.append(t, 1.0)  # the last point
     tubes = _tube_pieces(others, radii, poses, K)
     chunk = max(1, CHUNK_ELEMENTS // len(seg))
-    out = np.empty(len(poses))
-    for lo in range(0, len(poses), chunk):
-        out[lo:lo + chunk] = _overlap_chunk(points, poses[lo:lo + chunk], K, seg, t, tubes)
-    return out
+    starts = range(0, len(poses), chunk)
+    work = lambda lo: _overlap_chunk(points, poses[lo:lo + chunk], K, seg, t, tubes)  # noqa: E731
+    if len(starts) == 1:
+        return work(0)
+    from concurrent.futures import ThreadPoolExecutor
+
+    from .maps import default_workers
+
+    with ThreadPoolExecutor(default_workers()) as pool:  # numpy releases the GIL in the heavy steps
+        return np.concatenate(list(pool.map(work, starts)))
 
 
 def _overlap_chunk(points, poses, K, seg, t, tubes):
     C = len(poses)
-    px = _pixels(_normalised(camera_points(points, poses)), K)                   # (C, N, 2)
-    samples = px[:, seg] + t[:, None] * (px[:, seg + 1] - px[:, seg])           # (C, Ns, 2)
-    iu = np.floor(samples[..., 0] + 0.5).astype(np.int64)
-    iv = np.floor(samples[..., 1] + 0.5).astype(np.int64)
+    xy = _normalised(camera_points(points, poses))
+    pu = K[0, 0] * xy[..., 0] + K[0, 1] * xy[..., 1] + K[0, 2]                 # (C, N) pixels
+    pv = K[1, 1] * xy[..., 1] + K[1, 2]
+    iu = np.floor(pu[:, seg] + t * np.diff(pu, axis=1, append=pu[:, -1:])[:, seg] + 0.5).astype(np.int64)
+    iv = np.floor(pv[:, seg] + t * np.diff(pv, axis=1, append=pv[:, -1:])[:, seg] + 0.5).astype(np.int64)
     keep = np.ones(iu.shape, dtype=bool)                                        # drop repeats in a row
     keep[:, 1:] = (iu[:, 1:] != iu[:, :-1]) | (iv[:, 1:] != iv[:, :-1])
     cell, iu, iv = np.nonzero(keep)[0], iu[keep], iv[keep]
@@ -183,43 +196,55 @@ def _overlap_chunk(points, poses, K, seg, t, tubes):
     cell, rest = np.divmod(key, width * height)
     iu, iv = rest // height + u0, rest % height + v0
     total = np.bincount(cell, minlength=C)
-    A, B, Pa, Pb, R = tubes
-    if not len(A):
+    vertices, ia, ib, pa, pb, R = tubes
+    if not len(ia):
         return np.zeros(C)
-    y = (iv - K[1, 2]) / K[1, 1]
-    centres = np.stack(((iu - K[0, 2] - K[0, 1] * y) / K[0, 0], y), -1)        # pixel centres, normalised
-    a, b = _normalised(camera_points(A, poses)), _normalised(camera_points(B, poses))  # (C, S, 2)
-    r = R / (0.5 * (camera_points(Pa, poses)[..., 2] + camera_points(Pb, poses)[..., 2]))  # (C, S)
+    y = (iv - K[1, 2]) / K[1, 1]                                                # pixel centres, normalised
+    x = (iu - K[0, 2] - K[0, 1] * y) / K[0, 0]
+    cam = camera_points(vertices, poses)
+    xy, depth = _normalised(cam), cam[..., 2]
+    a, b = xy[:, ia], xy[:, ib]                                                 # (C, S, 2)
+    r = R / (0.5 * (depth[:, pa] + depth[:, pb]))                               # (C, S) normalised radius
     lo, hi = np.minimum(a, b) - r[..., None], np.maximum(a, b) + r[..., None]
+    low = np.stack((_per_cell(x, cell, C, np.minimum), _per_cell(y, cell, C, np.minimum)), -1)
+    high = np.stack((_per_cell(x, cell, C, np.maximum), _per_cell(y, cell, C, np.maximum)), -1)
+    ci, si = np.nonzero(np.all((lo <= high[:, None]) & (hi >= low[:, None]), axis=-1))  # pieces near the vessel
+    if not len(ci):
+        return np.zeros(C)
+    lo, hi = lo[ci, si], hi[ci, si]
+    ax, ay = a[ci, si, 0], a[ci, si, 1]
+    ux, uy = b[ci, si, 0] - ax, b[ci, si, 1] - ay
+    length2 = ux * ux + uy * uy
+    inverse = np.divide(1.0, length2, out=np.zeros_like(length2), where=length2 > 0)
+    r2 = r[ci, si] ** 2
     size = max(float(np.max(hi - lo)), 1e-12)                                   # grid step: a piece spans <= 2
     g_lo, g_hi = np.floor(lo / size).astype(np.int64), np.floor(hi / size).astype(np.int64)
-    g_pix = np.floor(centres / size).astype(np.int64)
-    gmin = np.minimum(g_lo.reshape(-1, 2).min(axis=0), g_pix.min(axis=0))
-    gspan = np.maximum(g_hi.reshape(-1, 2).max(axis=0), g_pix.max(axis=0)) - gmin + 1
-    ci, si = np.meshgrid(np.arange(C), np.arange(A.shape[0]), indexing="ij")
+    gx, gy = np.floor(x / size).astype(np.int64), np.floor(y / size).astype(np.int64)
+    gmin = np.minimum(g_lo.min(axis=0), (gx.min(), gy.min()))
+    span = np.maximum(g_hi.max(axis=0), (gx.max(), gy.max())) - gmin + 1
     keys, owners = [], []
     for dx in (0, 1):
         for dy in (0, 1):
-            gx, gy = g_lo[..., 0] + dx, g_lo[..., 1] + dy
-            ok = (gx <= g_hi[..., 0]) & (gy <= g_hi[..., 1])
-            keys.append(((ci[ok] * gspan[0] + gx[ok] - gmin[0]) * gspan[1] + gy[ok] - gmin[1]))
-            owners.append(np.column_stack((ci[ok], si[ok])))
-    keys, owners = np.concatenate(keys), np.vstack(owners)
-    order = np.argsort(keys, kind="stable")
+            ok = np.nonzero((g_lo[:, 0] + dx <= g_hi[:, 0]) & (g_lo[:, 1] + dy <= g_hi[:, 1]))[0]
+            keys.append((ci[ok] * span[0] + g_lo[ok, 0] + dx - gmin[0]) * span[1] + g_lo[ok, 1] + dy - gmin[1])
+            owners.append(ok)
+    keys, owners = np.concatenate(keys), np.concatenate(owners)
+    order = np.argsort(keys)
     keys, owners = keys[order], owners[order]
-    pkey = (cell * gspan[0] + g_pix[:, 0] - gmin[0]) * gspan[1] + g_pix[:, 1] - gmin[1]
-    first, last = np.searchsorted(keys, pkey, "left"), np.searchsorted(keys, pkey, "right")
-    n = last - first
+    pkey = (cell * span[0] + gx - gmin[0]) * span[1] + gy - gmin[1]
+    first = np.searchsorted(keys, pkey, "left")
+    n = np.searchsorted(keys, pkey, "right") - first
     pix = np.repeat(np.arange(len(pkey)), n)
     piece = owners[np.repeat(first - np.cumsum(n) + n, n) + np.arange(n.sum())]
-    c, s = piece[:, 0], piece[:, 1]
-    pa, ab = a[c, s], b[c, s] - a[c, s]
-    d = centres[pix] - pa
-    ab2 = np.sum(ab * ab, axis=-1)
-    w = np.clip(np.sum(d * ab, axis=-1) / np.where(ab2 > 0, ab2, 1.0), 0.0, 1.0)
-    gap = d - w[:, None] * ab
+    dx, dy = x[pix] - ax[piece], y[pix] - ay[piece]
+    w = np.clip((dx * ux[piece] + dy * uy[piece]) * inverse[piece], 0.0, 1.0)
+    dx -= w * ux[piece]
+    dy -= w * uy[piece]
     covered = np.zeros(len(pkey), dtype=bool)
-    covered[pix[np.sum(gap * gap, axis=-1) <= r[c, s] ** 2]] = True
+    covered[pix[dx * dx + dy * dy <= r2[piece]]] = True
     return np.bincount(cell[covered], minlength=C) / total
 
 
+def _per_cell(values, cell, C, ufunc):
+    """``ufunc`` (np.minimum or np.maximum) of ``values`` over each cell's entries (cells sorted, each present)."""
+    return ufunc.reduceat(values, np.searchsorted(cell, np.arange(C)))
