@@ -295,7 +295,7 @@ def _compare(args, system, target, primary, secondary, patient, paths) -> int:
     return 0
 
 
-def _read_centreline(path, option, frame, patient, position, name):  # noqa: ARG001 (name: kept for messages)
+def _read_centreline(path, option, frame, patient, position):
     """A CSV of points (mm; optional radius column) as a :class:`carmkin.views.Centreline` (table frame, m)."""
     from carmkin.views import Centreline, centreline_from_patient
 
@@ -331,8 +331,8 @@ def _optimal(args: argparse.Namespace) -> int:
     out = args.json if args.json == "-" else args.json and common.output_path(args.json, "--json", ("json",))
     patient = _patient(system, args)
     position = patient or args.patient_position
-    line = _read_centreline(args.centreline, "--centreline", args.frame, patient, args.patient_position, "centreline")
-    others = [_read_centreline(f, "--others", args.frame, patient, args.patient_position, f"others {f}")
+    line = _read_centreline(args.centreline, "--centreline", args.frame, patient, args.patient_position)
+    others = [_read_centreline(f, "--others", args.frame, patient, args.patient_position)
               for f in args.others]
     target = None if args.target_mm is None else common.parse_numbers(args.target_mm, 3, "--target-mm") / MM
     m = optimal_view_map(system, line, primary, secondary, patient, [o.points for o in others], target,
