@@ -168,6 +168,26 @@ def skeleton_centreline(labels, affine, patient="HFS", origin=(0.0, 0.0, 0.0), *
     return Centreline(world_mm / 1e3 @ T[:3, :3].T + T[:3, 3], None, name)
 
 
+def centreline_from_ct(points_mm, shape, affine, patient="HFS", origin=(0.0, 0.0, 0.0), *, radii_mm=None,
+                       name: str = "centreline", rotation=None) -> Centreline:
+    """A centreline given in a CT's world (NIfTI RAS, **mm**; e.g. picked on the CT) placed in the table frame
+    as the CT patient is (``patient``: a :class:`~carmkin.patient.CTPatient` or a Patient Position code with
+    ``origin`` (3,) m; ``rotation`` as in :func:`patient_to_table`); the CT is ``shape`` (I, J, K) voxels with
+    ``affine`` (4, 4, voxel → RAS mm). Points outside the volume raise
+    :class:`~carmkin.errors.AnatomyPlacementError`."""
+    from carmkin.interop.drr import Volume
+
+    P = real_array(points_mm, name, (None, 3), error=CentrelineError, unit="mm, CT world (RAS)")
+    A = real_array(affine, "affine", (4, 4), error=CentrelineError, unit="mm")
+    check_inside_ct(P, shape, A, name)
+    if hasattr(patient, "position") and hasattr(patient, "origin"):
+        patient, origin = patient.position, patient.origin
+    T = Volume(np.zeros(tuple(int(n) for n in shape), dtype=np.uint8), A).in_table(
+        patient_to_table(patient_pose_of(patient, origin), rotation))
+    radii = None if radii_mm is None else real_array(radii_mm, f"{name} radii", error=CentrelineError, unit="mm") / 1e3
+    return Centreline(P / 1e3 @ T[:3, :3].T + T[:3, 3], radii, name)
+
+
 def patient_pose_of(position, origin) -> np.ndarray:
     """The patient frame's pose (4, 4): a Patient Position code at ``origin`` (3,) m, or a pose as given."""
     from carmkin.imaging.projection import patient_pose

@@ -183,10 +183,22 @@ def test_anatomy_outside_the_patient_or_ct_is_refused():
     outside = np.array([[0.0, -0.5, 0.0], [0.0, -0.5, 0.05]])  # 0.5 m above the table, in the air
     with pytest.raises(AnatomyPlacementError, match="outside the patient"):
         optimal_view_map(SYSTEM, outside, [0], [0], PATIENT)
-    from carmkin.views.anatomy import check_inside_ct
+    from carmkin.views.anatomy import centreline_from_ct
 
     with pytest.raises(AnatomyPlacementError, match="outside the CT"):
-        check_inside_ct([[0.0, 0.0, 500.0]], (10, 10, 10), np.eye(4))
+        centreline_from_ct([[0.0, 0.0, 5.0], [0.0, 0.0, 500.0]], (10, 10, 10), np.eye(4))
+
+
+def test_centreline_from_ct_is_placed_as_the_skeleton():
+    from carmkin.views.anatomy import centreline_from_ct
+
+    affine = np.diag([0.8, 0.8, 1.25, 1.0])
+    affine[:3, 3] = (-10.0, 20.0, 100.0)
+    points = affine[:3, :3] @ np.array([[12.0, 17.0, 5.0], [12.0, 17.0, 30.0]]).T + affine[:3, 3][:, None]
+    line = centreline_from_ct(points.T, (30, 30, 40), affine, "HFS", (0.01, 0.02, -0.03))
+    centre = affine[:3, :3] @ ((np.array([30, 30, 40]) - 1) / 2) + affine[:3, 3]
+    want = (np.array([-1.0, -1.0, 1.0]) * (points.T - centre)) / 1000 + (0.01, 0.02, -0.03)
+    assert np.allclose(line.points, want, atol=1e-15)
 
 
 @pytest.mark.parametrize("points, match", [
