@@ -10,6 +10,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import carmkin
 from carmkin.imaging import intrinsics
@@ -211,3 +213,27 @@ def test_plane_angle_and_separation():
         proj = [pinhole(c, pose)[:2] for c in cusps.tolist()]
         want = min(math.dist(proj[i], proj[j]) for i in range(3) for j in range(i + 1, 3)) * 0.625
         assert abs(gaps[k] - want) < 1e-12
+
+
+# --- the same oracles over hypothesis-drawn polylines and views ------------------------------------------------
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(2, 12), m=st.integers(2, 8), others=st.integers(0, 3),
+       radius_mm=st.floats(0.5, 4.0))
+def test_metrics_match_the_oracles_on_drawn_polylines(seed, n, m, others, radius_mm):
+    rng = np.random.default_rng(seed)
+    target = rng.uniform(-0.05, 0.05, 3)
+    points = random_polyline(rng, target, n)
+    if np.min(np.linalg.norm(np.diff(points, axis=0), axis=1)) < 1e-6:
+        return
+    vessels = [random_polyline(rng, points[int(rng.integers(n))], m) for _ in range(others)]
+    poses = random_views(rng, target, 4, distance=float(rng.uniform(0.4, 1.0)))
+    distance = np.linalg.norm(poses[:, :3, 3] - target, axis=1)
+    F, worst = metrics.foreshortening(points, poses, distance)
+    counts = metrics.subdivisions(points, poses, K)
+    O = metrics.overlap(points, vessels, poses, K, radius_mm / 1000, counts=counts)
+    for k, pose in enumerate(poses):
+        f, w = oracle_foreshortening(points.tolist(), pose.tolist(), distance[k])
+        assert abs(F[k] - f) < TOLERANCE and abs(worst[k] - w) < TOLERANCE
+        o = oracle_overlap(points.tolist(), [v.tolist() for v in vessels], radius_mm / 1000, pose.tolist(),
+                           counts.tolist())
+        assert abs(O[k] - o) < TOLERANCE
