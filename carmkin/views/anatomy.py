@@ -54,6 +54,11 @@ class Centreline:
             k = int(np.argmax(step < MIN_SEGMENT))
             raise CentrelineError(f"{name}: points {k} and {k + 1} repeat {points[k].tolist()} (a segment of zero "
                                   f"length, under {MIN_SEGMENT * 1e3:g} mm): remove the repeated point")
+        unique, first = np.unique(points, axis=0, return_index=True)
+        if len(unique) < len(points):
+            k = int(np.setdiff1d(np.arange(len(points)), first)[0])
+            raise CentrelineError(f"{name}: point {k} repeats an earlier point {points[k].tolist()} (m): a centreline "
+                                  "visits each point once")
         length = float(step.sum())
         if not MIN_LENGTH <= length <= MAX_LENGTH:
             raise CentrelineError(f"{name} is {length:.6g} m long: expected {MIN_LENGTH:g}..{MAX_LENGTH:g} m (table "
