@@ -121,6 +121,7 @@ def test_plane_family_is_edge_on_and_best_separates_the_cusps():
 
 
 def test_skeleton_centreline_is_placed_as_the_ct_patient():
+    pytest.importorskip("skimage")
     labels = np.zeros((30, 30, 40), dtype=np.uint8)
     i, j = np.ogrid[:30, :30]
     labels[((i - 12) ** 2 + (j - 17) ** 2 <= 9)[:, :, None] & (np.arange(40) >= 5)[None, None] & (
