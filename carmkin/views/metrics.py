@@ -46,7 +46,7 @@ MIN_DEPTH = 1e-3
 #: Sample × view elements processed per chunk of the overlap (memory bound, ~100 MB).
 CHUNK_ELEMENTS = 1 << 15
 #: Longest projected piece (px) the other vessels' segments are cut into for the overlap's grid join.
-PIECE_PX = 8.0
+PIECE_PX = 16.0
 
 
 def xa_poses(primary_deg, secondary_deg, target, distance: float, R_patient=np.eye(3)) -> np.ndarray:
