@@ -112,9 +112,11 @@ def _radius(value, name="radius") -> float:
 
 
 def _others(others, radius) -> tuple[list[Centreline], list]:
+    if isinstance(others, np.ndarray) and others.ndim == 3:  # (K, M, 3): K vessels of M points each
+        others = list(others)
     if isinstance(others, (np.ndarray, str, bytes)) or isinstance(others, Centreline):
         raise AnatomyError("others must be a sequence of centrelines ((M, 3) arrays in m or Centreline), got "
-                           f"{type(others).__name__}")
+                           f"{type(others).__name__} {getattr(others, 'shape', '')}".rstrip())
     lines = [as_centreline(o, f"others[{k}]") for k, o in enumerate(others)]
     return lines, [c.radii if c.radii is not None else radius for c in lines]
 
