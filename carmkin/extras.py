@@ -19,7 +19,7 @@ EXTRAS = {
     "dicom": "pydicom",
     "drr": "torch, nanodrr and nibabel",
     "cbct": "itk-rtk (itk with RTK's CPU filters)",
-    "ct": "nibabel and scikit-image (a patient body from a CT)",
+    "ct": "nibabel and scikit-image (a patient body or a vessel centreline from a CT)",
 }
 
 

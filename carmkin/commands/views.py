@@ -9,6 +9,12 @@ to patient, table and floor (mm), and when the view is unreachable the reason an
 `carmkin views map` prints how many (primary, secondary) cells are reachable (default −90…90 × −45…45 at
 --step-deg 5); --plot writes the map as a figure, --html a static page with the sphere of view directions
 coloured by clearance, --json the cells. Exit 1 when a planned view is unreachable.
+`carmkin views optimal --centreline FILE.csv [--others FILE.csv ...]` maps the foreshortening and overlap of a
+vessel over the (primary, secondary) grid with the reachability of each view, and prints the optimal view, the
+best reachable one, its loss and its plan; --png writes the map figure, --json the answer (`-`: stdout). CSV
+files: one point a row, x,y,z in mm (an optional fourth column: the radius, mm; a header line is skipped) in the
+table frame (--frame table, default) or the patient's LPS frame (--frame patient, placed by the patient's
+position); --target-mm defaults to the centreline's midpoint. Exit 1 when no view of the map is reachable.
 """
 
 from __future__ import annotations
@@ -75,6 +81,29 @@ def register(parser: argparse.ArgumentParser) -> None:
     cmap.add_argument("--html", metavar="FILE", help="write a static page: the sphere of views coloured by clearance")
     cmap.add_argument("--json", metavar="FILE", help="write the cells as JSON")
     cmap.set_defaults(action_run=_map)
+    best = sub.add_parser("optimal", help="the best reachable view of a vessel (foreshortening, overlap)",
+                          description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    _common(best)
+    best.set_defaults(target_mm=None)
+    best.add_argument("--centreline", metavar="FILE.csv", required=True,
+                      help="the vessel of interest: x,y,z (mm) a row, optional radius (mm)")
+    best.add_argument("--others", metavar="FILE.csv", nargs="+", action="extend", default=[],
+                      help="the other vessels, drawn as tubes (same format)")
+    best.add_argument("--frame", choices=("table", "patient"), default="table",
+                      help="frame of the CSV points: the table frame (default) or the patient's LPS frame")
+    best.add_argument("--radius-mm", type=common.number(0.0, 30.0, unit="mm"), default=1.5,
+                      help="tube radius of the other vessels without a radius column (mm, default 1.5)")
+    best.add_argument("--weights", metavar="F,O", default="0.5,0.5",
+                      help="weights of foreshortening and overlap in the score (default 0.5,0.5)")
+    best.add_argument("--primary-range-deg", metavar="LO,HI", default="-90,90", help="primary angles (deg)")
+    best.add_argument("--secondary-range-deg", metavar="LO,HI", default="-45,45", help="secondary angles (deg)")
+    best.add_argument("--step-deg", type=common.number(0.1, 90.0, unit="deg"), default=2.0,
+                      help="grid step (deg, default 2)")
+    best.add_argument("--workers", type=common.integer(1, 256), default=None,
+                      help="processes for the reachability of 2048 cells or more (default: the usable cores)")
+    best.add_argument("--png", metavar="FILE", help="write the map figure (png, pdf, svg, ...)")
+    best.add_argument("--json", metavar="FILE", help="write the answer as JSON ('-': standard output)")
+    best.set_defaults(action_run=_optimal)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -264,3 +293,102 @@ def _compare(args, system, target, primary, secondary, patient, paths) -> int:
         compare_figure(maps).savefig(paths["plot"])
         print(f"wrote {paths['plot']}")
     return 0
+
+
+def _read_centreline(path, option, frame, patient, position):
+    """A CSV of points (mm; optional radius column) as a :class:`carmkin.views.Centreline` (table frame, m)."""
+    from carmkin.views import Centreline, centreline_from_patient
+
+    try:
+        with open(path, encoding="utf-8") as handle:
+            rows = [line for line in handle.read().splitlines() if line.strip()]
+    except OSError as exc:
+        raise common.UsageError(f"{option} {path}: cannot read ({exc.strerror})") from None
+    if rows and not any(c.isdigit() for c in rows[0].split(",")[0]):
+        rows = rows[1:]  # a header
+    try:
+        data = np.array([[float(v) for v in row.split(",")] for row in rows], dtype=float)
+    except ValueError as exc:
+        raise common.UsageError(f"{option} {path}: expected numbers x,y,z[,radius] in mm a row ({exc})") from None
+    if data.ndim != 2 or data.shape[1] not in (3, 4):
+        raise common.UsageError(f"{option} {path}: expected 3 or 4 columns (x,y,z[,radius] in mm), got "
+                                f"{data.shape[1] if data.ndim == 2 and len(data) else 0}")
+    radii = data[:, 3] if data.shape[1] == 4 else None
+    label = f"{option} {path}"
+    if frame == "patient":
+        return centreline_from_patient(data[:, :3], patient if patient is not None else position, radii, label)
+    return Centreline(data[:, :3] / MM, None if radii is None else radii / MM, label)
+
+
+def _optimal(args: argparse.Namespace) -> int:
+    from carmkin.views import optimal_view_map
+
+    system = common.system_from_args(args)
+    primary = _range(args.primary_range_deg, "--primary-range-deg", args.step_deg)
+    secondary = _range(args.secondary_range_deg, "--secondary-range-deg", args.step_deg)
+    weights = common.parse_numbers(args.weights, 2, "--weights")
+    png = args.png and common.plot_path(args.png, "--png")
+    out = args.json if args.json == "-" else args.json and common.output_path(args.json, "--json", ("json",))
+    patient = _patient(system, args)
+    position = patient or args.patient_position
+    line = _read_centreline(args.centreline, "--centreline", args.frame, patient, args.patient_position)
+    others = [_read_centreline(f, "--others", args.frame, patient, args.patient_position)
+              for f in args.others]
+    target = None if args.target_mm is None else common.parse_numbers(args.target_mm, 3, "--target-mm") / MM
+    m = optimal_view_map(system, line, primary, secondary, patient, [o.points for o in others], target,
+                         radius=args.radius_mm / MM, weights=weights, margin=args.margin_mm / MM, position=position,
+                         workers=args.workers)
+    answer = _optimal_json(system, m)
+    if out != "-":
+        _print_optimal(system, m, primary, secondary, args.step_deg)
+    if png:
+        from carmkin.views.optimal_figure import optimal_map_figure
+
+        optimal_map_figure(m).savefig(png)
+        print(f"wrote {png}")
+    if out == "-":
+        print(json.dumps(answer, indent=2))
+    elif out:
+        out.write_text(json.dumps(answer, indent=2), encoding="utf-8")
+        print(f"wrote {out}")
+    return 0 if m.best_reachable is not None else 1
+
+
+def _print_optimal(system, m, primary, secondary, step) -> None:
+    print(f"preset {system.name}: {int(m.reachable.sum())} of {m.reachable.size} views reachable, primary "
+          f"{primary[0]:g}..{primary[-1]:g}°, secondary {secondary[0]:g}..{secondary[-1]:g}° at {step:g}°; target "
+          f"{np.round(m.target * MM, 1).tolist()} mm; score = {m.weights[0]:g} foreshortening + {m.weights[1]:g} overlap")
+    print(f"{'view':20s} {'primary':>8s} {'secondary':>9s} {'foreshort.':>10s} {'worst':>7s} {'overlap':>8s} "
+          f"{'score':>7s} {'clearance':>10s}")
+    for label, angles in (("optimal", m.optimal), ("best reachable", m.best_reachable)):
+        if angles is None:
+            print(f"{label:20s} none reachable")
+            continue
+        i, j = m.cell(angles)
+        clear = f"{m.clearance[i, j] * MM:8.1f} mm" if m.reachable[i, j] else "unreachable"
+        print(f"{label:20s} {angles[0]:+8.1f} {angles[1]:+9.1f} {100 * m.foreshortening[i, j]:9.2f}% "
+              f"{100 * m.worst_foreshortening[i, j]:6.2f}% {100 * m.overlap[i, j]:7.2f}% {m.score[i, j]:7.4f} {clear:>10s}")
+    for line in m.summary()[2:]:
+        print(line)
+    if m.plan is not None and m.plan.success:
+        print(f"plan of the best reachable view: q = {common.format_joints(system, m.plan.q)}, clearance "
+              f"{m.plan.clearance * MM:.1f} mm")
+
+
+def _optimal_json(system, m) -> dict:
+    def cell(angles):
+        if angles is None:
+            return None
+        i, j = m.cell(angles)
+        return {"primary_deg": angles[0], "secondary_deg": angles[1], "reachable": bool(m.reachable[i, j]),
+                "foreshortening": float(m.foreshortening[i, j]), "worst_foreshortening": float(m.worst_foreshortening[i, j]),
+                "overlap": float(m.overlap[i, j]), "score": float(m.score[i, j]),
+                "clearance_mm": float(m.clearance[i, j] * MM) if m.reachable[i, j] else None}
+
+    plan = None
+    if m.plan is not None and m.plan.success:
+        plan = {"q": common.joints_json(system, m.plan.q), "clearance_mm": m.plan.clearance * MM,
+                "distance_mm": m.plan.distance * MM}
+    return {"target_mm": list(m.target * MM), "weights": list(m.weights), "optimal": cell(m.optimal),
+            "best_reachable": cell(m.best_reachable), "optimum_reachable": m.optimum_reachable,
+            "loss": m.loss, "plan": plan, "reachable_cells": int(m.reachable.sum()), "cells": int(m.reachable.size)}
