@@ -241,7 +241,7 @@ def check_inside_ct(points_mm, shape, affine, name: str = "centreline") -> None:
 def check_inside_patient(points, patient, name: str = "centreline") -> None:
     """Refuse points (N, 3) m (table frame) outside every obstacle of a patient model (its boxes, capsules,
     spheres, cylinders: the body the anatomy belongs to)."""
-    from carmkin.patient.obstacles import as_obstacles
+    from carmkin.world.obstacles import as_obstacles
 
     P = np.asarray(points, dtype=float)
     inside = np.zeros(len(P), dtype=bool)
