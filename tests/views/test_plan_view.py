@@ -306,3 +306,20 @@ def test_a_current_configuration_outside_the_ranges_is_refused_on_every_preset(n
             plan = plan_view(system, view, q_current=q, nearest=False)
             if plan.success:
                 assert np.all(plan.q >= system.lower - 1e-9) and np.all(plan.q <= system.upper + 1e-9)
+
+
+def test_coronary_views_lie_in_the_ranges_of_the_table_they_cite():
+    """Issue 31: the coronary standard views once lay outside the angle ranges of Di Mario & Sutaria's Table 2, and
+    the LAO cranial view was called spider-free though the spider is LAO caudal. The ranges, typed here from the
+    table (primary LAO +, secondary CRA +, deg), are the oracle."""
+    table_2 = {"rao-30": ((-45, -30), (0, 0)), "lao-50": ((45, 60), (0, 0)),
+               "lao-40-cranial-30": ((30, 45), (25, 35)), "lao-45-caudal-30": ((40, 50), (-40, -25)),
+               "rao-35-caudal-35": ((-45, -30), (-40, -30)), "rao-10-cranial-40": ((-10, -5), (35, 45)),
+               "rao-10-caudal-30": ((-15, -5), (-30, -30))}
+    cited = {name for name, v in STANDARD_VIEWS.items() if "Di Mario" in v.source}
+    assert cited == set(table_2)
+    for name, ((p_lo, p_hi), (s_lo, s_hi)) in table_2.items():
+        v = STANDARD_VIEWS[name]
+        assert p_lo <= v.primary_deg <= p_hi and s_lo <= v.secondary_deg <= s_hi, name
+    assert "spider" in STANDARD_VIEWS["lao-45-caudal-30"].description
+    assert not any("spider" in v.description for n, v in STANDARD_VIEWS.items() if v.secondary_deg >= 0)
