@@ -124,9 +124,10 @@ def test_every_enhanced_xa_attribute_is_required_and_checked(keyword):
 @pytest.mark.parametrize("keyword, value, words", [
     ("PositionerPrimaryAngle", 181.0, "must be within"), ("PositionerSecondaryAngle", -90.5, "must be within"),
     ("PositionerSecondaryAngle", "abcd", "cannot be read|must be a number"),
-    ("DistanceSourceToPatient", 0.0, "must be > 0 mm"), ("DistanceSourceToPatient", -900.0, "must be > 0 mm, got -900"),
+    ("DistanceSourceToIsocenter", 0.0, "must be > 0 mm"),
+    ("DistanceSourceToIsocenter", -900.0, "must be > 0 mm, got -900"),
     ("PositionerSecondaryAngle", None, "is required, the dataset has none"),
-    ("DistanceSourceToPatient", None, "is required, the dataset has none"),
+    ("DistanceSourceToIsocenter", None, "is required, the dataset has none"),
 ])
 def test_xa_attributes_are_checked_through_a_file(keyword, value, words):
     ds = xa()
@@ -313,3 +314,18 @@ def test_cli_convention_round_trip(tmp_path, capsys):
         assert main(["dicom", "--read", str(path), "--positioner-convention", convention]) == 0
         assert "orbital +15.000°" in capsys.readouterr().out
     assert carmkin  # the package imports without pydicom's help
+
+
+
+def test_distance_source_to_patient_is_not_the_isocentre():
+    """Issue 31: Distance Source to Patient (0018,1111) is the distance to the table or support nearest the patient
+    (PS3.3), so it never places the source: Distance Source to Isocenter does, or the caller's value."""
+    ds = xa()
+    iso = float(ds.DistanceSourceToIsocenter)
+    del ds.DistanceSourceToIsocenter
+    ds.DistanceSourceToPatient = 0.5 * iso  # the table top, nearer the source than the isocentre
+    with pytest.raises(DicomAttributeError, match="DistanceSourceToIsocenter .*Distance Source to Patient"):
+        dicom_io.view_from_dataset(ds)
+    given = dicom_io.view_from_dataset(ds, source_to_isocenter=iso / 1000.0).pose
+    ds.DistanceSourceToIsocenter = iso
+    np.testing.assert_allclose(given, dicom_io.view_from_dataset(ds).pose, atol=1e-12)
