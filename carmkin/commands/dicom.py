@@ -32,8 +32,10 @@ def register(parser: argparse.ArgumentParser) -> None:
     add_configuration_argument(parser, what="configuration (the current one with --read)")
     parser.add_argument("--patient", metavar="CODE",
                         help="DICOM patient position (default HFS; with --read only used where the dataset has none)")
-    parser.add_argument("--positioner-convention", choices=("beam", "literal"), default="beam",
-                        help="reading of the Enhanced XA Ap2/Ap3 signs (default beam)")
+    parser.add_argument("--positioner-convention", choices=("beam", "literal", "literal-ap2", "literal-ap3",
+                                                             "pyskindose"), default="beam",
+                        help="reading of the Enhanced XA Ap2/Ap3 signs: beam (default), literal (both), or literal "
+                             "for one angle only (literal-ap2 = pyskindose, literal-ap3)")
     parser.add_argument("--patient-origin-mm", metavar="X,Y,Z", default="0,0,0",
                         help="patient frame origin in the table frame (mm, default 0,0,0)")
     parser.add_argument("--write-xa", metavar="FILE", help="write a synthetic XA dataset of the configuration")
