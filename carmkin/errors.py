@@ -286,3 +286,10 @@ class PatientModelError(CarmkinError):
 
 class ViewError(CarmkinError):
     """A view is ill-defined (angles, target, direction, segment, distance, roll) or a view name is unknown."""
+
+
+# --- carmkin.datasets ----------------------------------------------------------------------------
+
+
+class DatasetError(CarmkinError):
+    """A dataset request is ill-defined (prior, count, size, output folder) or a prior cannot be met."""
