@@ -118,13 +118,13 @@ class _Tally:
             p, a = self.groups.get(g, (0, 0))
             self.groups[g] = (p + 1, a + int(k))
 
-    def rejections(self, notes=()) -> Rejections:
+    def rejections(self, notes=(), statistics=None) -> Rejections:
         groups = {g: v for g, v in self.groups.items() if g != ""}
         dead = [g for g, (p, a) in groups.items() if p >= UNREACHABLE_AFTER and a == 0]
         if dead:
             notes = tuple(notes) + (f"no feasible configuration for {', '.join(dead)} in {UNREACHABLE_AFTER}+ "
                                     "proposals each: the prior cannot be met for them",)
-        return Rejections(self.proposed, self.accepted, dict(self.reasons), groups, tuple(notes))
+        return Rejections(self.proposed, self.accepted, dict(self.reasons), groups, tuple(notes), statistics or {})
 
 
 def _rounds(n: int, propose, prior: str):
@@ -160,6 +160,7 @@ def standard_views(system, patient, rng, n, margin, *, views=None, sd_deg=CLINIC
     target = _target(target_m, patient)
     base = np.array([[STANDARD_VIEWS[v].primary_deg, STANDARD_VIEWS[v].secondary_deg] for v in names])
     frame = patient_frame(patient)
+    seen = []
 
     def propose(count):
         k = rng.integers(len(names), size=count)
@@ -174,12 +175,27 @@ def standard_views(system, patient, rng, n, margin, *, views=None, sd_deg=CLINIC
                                for (p, s), r in zip(angles, rolls)])
         out = search(system, patient, np.tile(target, (count, 1)), directions(patient, *angles.T), margin, x_axes)
         labels = np.array(names, dtype=object)[k]
+        seen.append((k, angles - base[k], out.reachable))
         return out.reachable, out.binding, labels, out.q, labels, angles
 
     (Q, labels, nominal), tally = _rounds(n, propose, "standard-views")
+    k, offsets, keep = (np.concatenate(parts) for parts in zip(*seen))
+    statistics = {name: cut_statistics(offsets[k == i], keep[k == i]) for i, name in enumerate(names)}
     params = {"views": names, "sd_deg": sd, "roll_sd_deg": roll_sd, "target_m": target.tolist(),
               "sd_source": "X-ray Genius (Kausch et al., IJCARS 2020): SD 2.5 deg, clinical variance"}
-    return Q, labels, nominal, tally.rejections(), params
+    return Q, labels, nominal, tally.rejections(statistics=statistics), params
+
+
+def cut_statistics(offsets, keep) -> dict:
+    """How the feasibility cut changes a view's angles: mean and SD (deg) of the (primary, secondary) offsets
+    from the view, of every proposal and of the accepted ones (NaN when none)."""
+    def stats(x):
+        if not len(x):
+            return [math.nan] * 4
+        return [float(x[:, 0].mean()), float(x[:, 0].std()), float(x[:, 1].mean()), float(x[:, 1].std())]
+
+    return {"columns": ["primary mean", "primary SD", "secondary mean", "secondary SD"], "proposed": stats(offsets),
+            "accepted": stats(offsets[keep])}
 
 
 def reachable_sphere(system, patient, rng, n, margin, *, cell_deg=5.0, jitter_mm=20.0, target_m=None):

@@ -81,13 +81,15 @@ def describe_patient(patient) -> dict:
 class Rejections:
     """What a prior proposed and kept: ``proposed``, ``accepted`` counts, ``reasons`` {binding: count} of
     the rejected (a joint group, ``"contact"``, ``"sweep failed"``), ``groups`` {group: (proposed, accepted)}
-    (per standard view, per sweep ...), and ``notes`` (sentences, e.g. the views no configuration reaches)."""
+    (per standard view, per sweep ...), ``notes`` (sentences, e.g. the views no configuration reaches) and
+    ``statistics`` {group: ...}: how the feasibility cut changes the drawn angles (standard views)."""
 
     proposed: int
     accepted: int
     reasons: dict = field(default_factory=dict)
     groups: dict = field(default_factory=dict)
     notes: tuple = ()
+    statistics: dict = field(default_factory=dict)
 
     @property
     def fraction(self) -> float:
@@ -97,7 +99,7 @@ class Rejections:
     def as_dict(self) -> dict:
         return {"proposed": self.proposed, "accepted": self.accepted, "fraction": self.fraction,
                 "reasons": dict(self.reasons), "groups": {k: list(v) for k, v in self.groups.items()},
-                "notes": list(self.notes)}
+                "notes": list(self.notes), "statistics": self.statistics}
 
 
 @dataclass(frozen=True)
