@@ -2,7 +2,7 @@
 
 :func:`sample_poses` draws feasible poses from a prior (:mod:`.priors`) as :class:`~.samples.PoseSamples`;
 :mod:`.render` renders them in batches through nanodrr with landmark labels; :mod:`.shards` writes Parquet
-shards (one row per image) deterministically and resumably; :mod:`.scale` runs shards on Ray; :mod:`.info`
+shards (one row per image) deterministically and resumably; :mod:`.scale` runs shards on Ray; :mod:`.contents`
 reads a dataset back. Library units: m and rad, table frame 0.
 """
 
@@ -54,7 +54,7 @@ def generate(spec, out, **options):
 
 
 def info(out):
-    """What the dataset folder ``out`` holds (:func:`carmkin.datasets.info.info`)."""
-    from .info import info as read
+    """What the dataset folder ``out`` holds (:func:`carmkin.datasets.contents.info`)."""
+    from .contents import info as read
 
     return read(out)

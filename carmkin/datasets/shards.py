@@ -73,11 +73,12 @@ class Spec:
         from carmkin import _version
         from carmkin.presets.writer import to_toml
 
+        from .render import parse_size
         from .samples import describe_patient
 
         return {"format": "carmkin-dataset", "format_version": FORMAT_VERSION, "preset": self.system.name,
                 "system_toml": to_toml(self.system), "patient": describe_patient(self.patient), "prior": self.prior,
-                "parameters": json.loads(json.dumps(self.parameters)), "n": self.n, "size": list(self.size),
+                "parameters": json.loads(json.dumps(self.parameters)), "n": self.n, "size": list(parse_size(self.size)),
                 "seed": self.seed, "shard_size": self.shard_size, "device": self.device, "n_samples": self.n_samples,
                 "margin_m": self.margin, "volume": self.volume, "carmkin": _version()}
 
