@@ -6,7 +6,8 @@ keeps the feasible ones, rejections are counted by reason.
   uniformly, its primary and secondary angles perturbed by a Gaussian of SD :data:`CLINICAL_SD_DEG` — X-ray
   Genius' "reasonable level of clinical variance" (Kausch et al., X-ray Genius / "Toward automatic C-arm
   positioning for standard projections in orthopedic surgery", IJCARS 2020: SD 2.5°); the roll about the beam
-  is the planner's (free) or, with ``roll_sd_deg``, Gaussian about detector rotation 0.
+  is the planner's (free) or, with ``roll_sd_deg``, Gaussian about the roll the C-arm takes for the view when
+  it is free (a mobile C-arm rolls the image only through its wigwag, so rotation 0 is no nominal roll).
 * ``reachable-sphere``: directions uniform over the part of the view sphere the system reaches: a
   :func:`carmkin.views.reach_map` of ``cell_deg`` cells at the target, a reachable cell drawn with probability
   ∝ its area on the sphere, the direction uniform on the sphere inside it, the target jittered uniformly in
@@ -148,7 +149,6 @@ def _rounds(n: int, propose, prior: str):
 # --- the priors --------------------------------------------------------------------------------------------
 def standard_views(system, patient, rng, n, margin, *, views=None, sd_deg=CLINICAL_SD_DEG, roll_sd_deg=None,
                    target_m=None):
-    from carmkin.interop import dicom
     from carmkin.views.standard import STANDARD_VIEWS
 
     names = list(STANDARD_VIEWS) if views is None else [str(v).lower() for v in views]
@@ -159,7 +159,6 @@ def standard_views(system, patient, rng, n, margin, *, views=None, sd_deg=CLINIC
     roll_sd = None if roll_sd_deg is None else _number(roll_sd_deg, "roll_sd_deg", 0.0, 180.0, "deg")
     target = _target(target_m, patient)
     base = np.array([[STANDARD_VIEWS[v].primary_deg, STANDARD_VIEWS[v].secondary_deg] for v in names])
-    frame = patient_frame(patient)
     seen = []
 
     def propose(count):
@@ -168,12 +167,10 @@ def standard_views(system, patient, rng, n, margin, *, views=None, sd_deg=CLINIC
         angles[:, 0] = wrap_deg(angles[:, 0])
         if np.any(np.abs(angles[:, 1]) > 90.0):
             raise DatasetError("a secondary angle beyond ±90° was drawn: lower sd_deg")
-        x_axes = None
+        beams = directions(patient, *angles.T)
+        out = search(system, patient, np.tile(target, (count, 1)), beams, margin)
         if roll_sd is not None:
-            rolls = rng.normal(0.0, roll_sd, size=count)
-            x_axes = np.array([dicom.pose_from_xa_angles(p, s, target, 1.0, frame, wrap_deg(r))[:3, 0]
-                               for (p, s), r in zip(angles, rolls)])
-        out = search(system, patient, np.tile(target, (count, 1)), directions(patient, *angles.T), margin, x_axes)
+            out = _rolled(system, patient, target, beams, out, rng.normal(0.0, roll_sd, size=count), margin)
         labels = np.array(names, dtype=object)[k]
         seen.append((k, angles - base[k], out.reachable))
         return out.reachable, out.binding, labels, out.q, labels, angles
@@ -184,6 +181,21 @@ def standard_views(system, patient, rng, n, margin, *, views=None, sd_deg=CLINIC
     params = {"views": names, "sd_deg": sd, "roll_sd_deg": roll_sd, "target_m": target.tolist(),
               "sd_source": "X-ray Genius (Kausch et al., IJCARS 2020): SD 2.5 deg, clinical variance"}
     return Q, labels, nominal, tally.rejections(statistics=statistics), params
+
+
+def _rolled(system, patient, target, beams, free, rolls_deg, margin):
+    """The search again with the roll fixed at ``rolls_deg`` (N,) from the roll of the free plan (its source x
+    axis turned towards y about the beam: minus DICOM's detector rotation), for the cells the free search
+    reached; the others stay as they were."""
+    out = free
+    ok = np.flatnonzero(free.reachable)
+    if len(ok):
+        T = system.fk(free.q[ok])
+        r = np.radians(rolls_deg[ok])[:, None]
+        x_axes = np.cos(r) * T[:, :3, 0] + np.sin(r) * T[:, :3, 1]
+        fixed = search(system, patient, np.tile(target, (len(ok), 1)), beams[ok], margin, x_axes)
+        out.reachable[ok], out.q[ok], out.binding[ok] = fixed.reachable, fixed.q, fixed.binding
+    return out
 
 
 def cut_statistics(offsets, keep) -> dict:
