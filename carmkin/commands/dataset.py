@@ -54,7 +54,7 @@ def register(parser: argparse.ArgumentParser) -> None:
     prior.add_argument("--views", metavar="NAMES", help="standard-views: comma-separated view names (default all)")
     prior.add_argument("--sd-deg", type=common.number(0, 45, unit="deg"), help="standard-views: SD (deg, default 2.5)")
     prior.add_argument("--roll-sd-deg", type=common.number(0, 180, unit="deg"),
-                       help="standard-views: SD of the detector rotation (deg; default: roll free)")
+                       help="standard-views: SD of the roll about the free plan's (deg; default: roll free)")
     prior.add_argument("--target-mm", metavar="X,Y,Z", help="target in the table frame (mm; default: inside the chest)")
     prior.add_argument("--jitter-mm", type=common.number(0, 500, unit="mm"),
                        help="reachable-sphere, sweep: target jitter, half-side of a cube (mm, default 20)")
