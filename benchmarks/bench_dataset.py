@@ -9,7 +9,8 @@
    nanodrr batched rendering of the same poses in the same run, at each size, on CPU and (when torch sees one)
    on the GPU, whose name is printed.
 
-Run: python benchmarks/bench_dataset.py [--quick]   (quick: 500 poses a prior, 40x30 images, CI-sized)
+Run: python benchmarks/bench_dataset.py [--quick] [--part sampling|sd|ray|rendering]
+(quick: 500 poses a prior, 40x30 images, CI-sized)
 """
 
 from __future__ import annotations
@@ -168,13 +169,20 @@ def rendering(system, patient, sizes, n: int, devices) -> None:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--quick", action="store_true", help="small counts and one small image size (CI)")
+    parser.add_argument("--part", choices=("all", "sampling", "sd", "ray", "rendering"), default="all",
+                        help="run one part only (default all)")
     args = parser.parse_args()
     system = carmkin.load_preset("siremobile-iso-c3d")
     patient = ParametricPatient.on_table(system)
     n = 500 if args.quick else 10_000
-    sampling(system, patient, n)
-    clinical_sd(system, patient, 1000 if args.quick else 10_000)
-    ray_scaling(system, patient, 4 if args.quick else 8, 500 if args.quick else 2000)
+    if args.part in ("all", "sampling"):
+        sampling(system, patient, n)
+    if args.part in ("all", "sd"):
+        clinical_sd(system, patient, 1000 if args.quick else 10_000)
+    if args.part in ("all", "ray"):
+        ray_scaling(system, patient, 4 if args.quick else 8, 500 if args.quick else 2000)
+    if args.part not in ("all", "rendering"):
+        return 0
     try:
         import torch
 
