@@ -210,9 +210,30 @@ def cut_statistics(offsets, keep) -> dict:
             "accepted": stats(offsets[keep])}
 
 
-def reachable_sphere(system, patient, rng, n, margin, *, cell_deg=5.0, jitter_mm=20.0, target_m=None):
+#: Reach maps of this process, by (system, patient, target, grid, margin): every shard of a dataset asks for the same.
+_REACH_MAPS: dict = {}
+
+
+def _reach_map(system, patient, target, primary_deg, secondary_deg, margin):
+    """:func:`carmkin.views.reach_map` of the grid (one process, in order: the same map for any shard), kept
+    for the next call with the same arguments when the patient is hashable."""
     from carmkin.views import reach_map
 
+    try:
+        key = (system, patient, target.tobytes(), primary_deg.tobytes(), secondary_deg.tobytes(), margin)
+        hash(key)
+    except TypeError:  # a list of obstacles: no cache
+        key = None
+    if key is not None and key in _REACH_MAPS:
+        return _REACH_MAPS[key]
+    cells = reach_map(system, target, primary_deg, secondary_deg, patient, margin=margin, workers=1)
+    if key is not None:
+        _REACH_MAPS.clear()
+        _REACH_MAPS[key] = cells
+    return cells
+
+
+def reachable_sphere(system, patient, rng, n, margin, *, cell_deg=5.0, jitter_mm=20.0, target_m=None):
     cell = _number(cell_deg, "cell_deg", 0.5, 45.0, "deg")
     if abs(180.0 / cell - round(180.0 / cell)) > 1e-9:
         raise DatasetError(f"cell_deg must divide 180 deg, got {cell:g}")
@@ -220,7 +241,7 @@ def reachable_sphere(system, patient, rng, n, margin, *, cell_deg=5.0, jitter_mm
     target = _target(target_m, patient)
     p_edges, s_edges = np.linspace(-180, 180, round(360 / cell) + 1), np.linspace(-90, 90, round(180 / cell) + 1)
     p_mid, s_mid = 0.5 * (p_edges[1:] + p_edges[:-1]), 0.5 * (s_edges[1:] + s_edges[:-1])
-    cells = reach_map(system, target, p_mid, s_mid, patient, margin=margin, workers=1)
+    cells = _reach_map(system, patient, target, p_mid, s_mid, margin)
     area = np.diff(np.sin(np.radians(s_edges)))[None, :] * np.ones((len(p_mid), 1))
     weight = (cells.reachable * area).ravel()
     if not weight.sum():

@@ -208,6 +208,15 @@ def test_the_command_line(reference, tmp_path, capsys):
         assert code == 2 and match in err and "Traceback" not in err
     assert main(["dataset", "info", str(tmp_path)]) == 2
     assert "holds no dataset" in capsys.readouterr().err
+    out = tmp_path / "made"
+    argv = ["dataset", "generate", "--prior", "reachable-sphere", "--n", "4", "--size", "40x30", "--out", str(out),
+            "--local", "--no-progress", "--shard-size", "2", "--samples", "50", "--cell-deg", "10", "--jitter-mm", "5"]
+    assert main(argv) == 0
+    assert "4 images in 2 shards made, 0 already there" in capsys.readouterr().out
+    assert main(argv) == 0
+    assert "0 images in 0 shards made, 2 already there" in capsys.readouterr().out
+    meta = shards.read_metadata(out / "shard-00000-of-00002.parquet")
+    assert meta["spec"]["parameters"] == {"cell_deg": 10.0, "jitter_mm": 5.0}
 
 
 @pytest.mark.filterwarnings("ignore::DeprecationWarning")  # Ray Data's own
