@@ -143,8 +143,9 @@ def build(system, patient, Q, labels, nominal, provenance: dict, rejections: Rej
 
 
 def check(system, samples: PoseSamples, margin: float) -> None:
-    """Every sample in its joint ranges (± :data:`JOINT_RANGE_TOLERANCE`), with ``clearance_m`` ≥ ``margin``
-    and finite, or :class:`DatasetError` naming the first that is not (never expected: priors sample feasible
+    """Every sample in its joint ranges (± :data:`JOINT_RANGE_TOLERANCE`), its P equal to K [R | t] of its
+    source pose by the scalar route (:data:`P_RELATIVE_TOLERANCE`), with ``clearance_m`` ≥ ``margin`` and
+    finite, or :class:`DatasetError` naming the first that is not (never expected: priors sample feasible
     poses by construction; this is the check after it)."""
     Q = samples.q
     outside = (Q < system.lower - JOINT_RANGE_TOLERANCE) | (Q > system.upper + JOINT_RANGE_TOLERANCE) | ~np.isfinite(Q)
@@ -152,6 +153,19 @@ def check(system, samples: PoseSamples, margin: float) -> None:
         i, k = map(int, np.argwhere(outside)[0])
         raise DatasetError(f"sample {i}: {system.joint_names[k]} = {Q[i, k]:g} outside its range "
                            f"[{system.lower[k]:g}, {system.upper[k]:g}] (m or rad)")
+    from carmkin.imaging.projection import intrinsics
+
+    # P = K [Rᵀ | −Rᵀ p] exactly when P's left block times R is K and the source position is P's null vector.
+    K, _ = intrinsics(system)
+    R, p, P = samples.source_pose[:, :3, :3], samples.source_pose[:, :3, 3], samples.P
+    scale = np.linalg.norm(P, axis=(1, 2))
+    residual = np.maximum(np.linalg.norm(P[:, :, :3] @ R - K, axis=(1, 2)),
+                          np.linalg.norm(np.einsum("nij,nj->ni", P[:, :, :3], p) + P[:, :, 3], axis=1))
+    off = ~(residual <= P_RELATIVE_TOLERANCE * scale)
+    if off.any():
+        i = int(np.flatnonzero(off)[0])
+        raise DatasetError(f"sample {i}: P differs from K [R | t] of its source pose by {residual[i] / scale[i]:.1e} "
+                           f"(relative; at most {P_RELATIVE_TOLERANCE:g})")
     low = ~(samples.clearance_m >= margin)
     if low.any():
         i = int(np.flatnonzero(low)[0])

@@ -154,3 +154,18 @@ def test_the_roll_is_gaussian_about_the_free_roll():
     # rotation (Ap3, "beam" reading: clockwise seen from behind the detector) counts the other way.
     assert np.allclose(datasets.priors.wrap_deg(turn), -drawn, atol=ANGLE_TOLERANCE_DEG, rtol=0)
     assert np.allclose(rolled.nominal, free.nominal) and np.all(rolled.clearance_m >= datasets.DEFAULT_MARGIN)
+
+
+@pytest.mark.parametrize("field, change, match", [
+    ("P", lambda s: s.P * np.r_[1.0, 1.0 + 1e-9][:, None, None].repeat(5, 0), "P differs from K"),
+    ("clearance_m", lambda s: s.clearance_m - 1.0, "below the margin"),
+    ("q", lambda s: s.q + np.r_[0.0, 10.0][:, None].repeat(5, 0), "outside its range"),
+])
+def test_the_check_after_drawing_refuses_what_is_not_feasible(field, change, match):
+    import dataclasses
+
+    system = carmkin.load_preset("siremobile-iso-c3d")
+    samples = datasets.sample_poses(system, "joint-uniform", 10, seed=1)
+    datasets.samples.check(system, samples, datasets.DEFAULT_MARGIN)
+    with pytest.raises(DatasetError, match=match):
+        datasets.samples.check(system, dataclasses.replace(samples, **{field: change(samples)}), datasets.DEFAULT_MARGIN)
