@@ -151,7 +151,10 @@ def standard_views(system, patient, rng, n, margin, *, views=None, sd_deg=CLINIC
                    target_m=None):
     from carmkin.views.standard import STANDARD_VIEWS
 
-    names = list(STANDARD_VIEWS) if views is None else [str(v).lower() for v in views]
+    if views is not None and (isinstance(views, str) or not isinstance(views, (list, tuple))
+                              or not all(isinstance(v, str) for v in views)):
+        raise DatasetError(f"views must be a list of standard view names ({', '.join(STANDARD_VIEWS)}), got {views!r:.80}")
+    names = list(STANDARD_VIEWS) if views is None else [v.lower() for v in views]
     unknown = [v for v in names if v not in STANDARD_VIEWS]
     if unknown or not names:
         raise DatasetError(f"views must name standard views ({', '.join(STANDARD_VIEWS)}), got {views!r}")
