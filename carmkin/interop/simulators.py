@@ -326,7 +326,7 @@ def euler_zxy(angles_deg) -> np.ndarray:
 
 def euler_zxy_angles(R) -> np.ndarray:
     """Intrinsic ZXY Euler angles (3,) (deg) of a rotation (3, 3): β in [−90°, 90°], α and γ in (−180°, 180°]."""
-    R = np.asarray(R, dtype=float)
+    R = real_array(R, "R", (3, 3), error=SimulatorConventionError)
     b = np.arcsin(np.clip(R[2, 1], -1.0, 1.0))
     if np.cos(b) < EULER_GIMBAL_TOLERANCE:
         return np.degrees([np.arctan2(R[1, 0], R[0, 0]), b, 0.0])
