@@ -168,14 +168,16 @@ def standard_views(system, patient, rng, n, margin, *, views=None, sd_deg=CLINIC
         k = rng.integers(len(names), size=count)
         angles = base[k] + rng.normal(0.0, sd, size=(count, 2))
         angles[:, 0] = wrap_deg(angles[:, 0])
-        if np.any(np.abs(angles[:, 1]) > 90.0):
-            raise DatasetError("a secondary angle beyond ±90° was drawn: lower sd_deg")
         beams = directions(patient, *angles.T)
         out = search(system, patient, np.tile(target, (count, 1)), beams, margin)
         if roll_sd is not None:
             out = _rolled(system, patient, target, beams, out, rng.normal(0.0, roll_sd, size=count), margin)
+        beyond = np.abs(angles[:, 1]) > 90.0  # no XA secondary angle: rejected, never folded back
+        out.reachable[beyond], out.binding[beyond] = False, "secondary beyond ±90°"
         labels = np.array(names, dtype=object)[k]
-        seen.append((k, angles - base[k], out.reachable))
+        offsets = angles - base[k]
+        offsets[:, 0] = wrap_deg(offsets[:, 0])
+        seen.append((k, offsets, out.reachable))
         return out.reachable, out.binding, labels, out.q, labels, angles
 
     (Q, labels, nominal), tally = _rounds(n, propose, "standard-views")

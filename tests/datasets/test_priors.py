@@ -169,3 +169,16 @@ def test_the_check_after_drawing_refuses_what_is_not_feasible(field, change, mat
     datasets.samples.check(system, samples, datasets.DEFAULT_MARGIN)
     with pytest.raises(DatasetError, match=match):
         datasets.samples.check(system, dataclasses.replace(samples, **{field: change(samples)}), datasets.DEFAULT_MARGIN)
+
+
+def test_wide_sd_rejects_secondary_angles_beyond_90_and_wraps_pa():
+    """SD 30°: draws of pelvis-inlet (secondary 40°) beyond ±90° are rejected by name, never folded back; PA's
+    offsets wrap at ±180° (mean near 0, not ±360°)."""
+    system = carmkin.load_preset("siremobile-iso-c3d")
+    patient = ParametricPatient.on_table(system)
+    samples = datasets.sample_poses(system, "standard-views", 300, seed=3, patient=patient, views=["pa", "pelvis-inlet"],
+                                    sd_deg=30.0)
+    assert samples.rejections.reasons.get("secondary beyond ±90°", 0) > 0
+    assert np.all(np.abs(samples.secondary_deg) <= 90.0)
+    pa = samples.rejections.statistics["pa"]["proposed"]
+    assert abs(pa[0]) < 10.0 and 20.0 < pa[1] < 40.0
