@@ -306,3 +306,10 @@ class PlaneError(AnatomyError):
 
 class AnatomyPlacementError(AnatomyError):
     """The anatomy lies outside the CT it came from or outside the patient it belongs to."""
+
+
+# --- carmkin.datasets ----------------------------------------------------------------------------
+
+
+class DatasetError(CarmkinError):
+    """A dataset request is ill-defined (prior, count, size, output folder) or a prior cannot be met."""

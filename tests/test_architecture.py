@@ -25,7 +25,8 @@ LAYERS = (
     ("carmkin.studies", "carmkin.imaging", "carmkin.reposition", "carmkin.interop", "carmkin.plots",
      "carmkin.sweeps", "carmkin.patient"),
     ("carmkin.views",),
-    ("carmkin.reproduce",),  # the dissertation's experiments: above the applications they simulate
+    ("carmkin.reproduce",  # the dissertation's experiments: above the applications they simulate
+     "carmkin.datasets"),  # synthetic datasets: poses from the planners (views, sweeps), DRRs from interop
     ("carmkin.viz",),
     ("carmkin.commands", "carmkin.cli"),
 )

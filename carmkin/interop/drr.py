@@ -141,25 +141,62 @@ class Renderer:
 
     def render(self, T_source) -> np.ndarray:
         """DRR (rows, columns) for the source pose ``T_source`` (4, 4, table frame, m)."""
+        return self.render_batch(np.asarray(T_source, dtype=float)[None])[0]
+
+    def render_batch(self, T_sources) -> np.ndarray:
+        """DRRs (B, rows, columns) for source poses ``T_sources`` (B, 4, 4, table frame, m), in one nanodrr call
+        (one entry of :attr:`seconds` per call)."""
         torch = self.torch
-        T_ct_source = simulators.to_millimetres(inverse(self.T_table_ct) @ check_rigid_transform(T_source))
-        rt_inv = torch.tensor(simulators.nanodrr_rt_inv(T_ct_source), dtype=torch.float32, device=self.device)[None]
+        T = np.asarray(T_sources, dtype=float)
+        if T.ndim != 3 or T.shape[1:] != (4, 4) or not len(T):
+            raise RenderingError(f"T_sources must be source poses (B, 4, 4) with B >= 1, got shape {T.shape}")
+        T_ct = inverse(self.T_table_ct)
+        rt_inv = np.stack([simulators.nanodrr_rt_inv(simulators.to_millimetres(T_ct @ check_rigid_transform(t, "T_source")))
+                           for t in T])
+        rt_inv = torch.tensor(rt_inv, dtype=torch.float32, device=self.device)
         start = time.perf_counter()
         with torch.no_grad():
             image = self.drr(self.subject, rt_inv, n_samples=self.n_samples)
         if self.device != "cpu":
             torch.cuda.synchronize()
         self.seconds.append(time.perf_counter() - start)
-        return image[0, 0].double().cpu().numpy()
+        return image[:, 0].double().cpu().numpy()
 
 
-def blob_centre(image, background=None, window: int = 7) -> np.ndarray:
+#: The window of :func:`blob_centre` grows until the blob on its border falls below this fraction of its peak.
+BLOB_EDGE_FRACTION = 1e-3
+
+
+def blob_centre(image, background=None, window: int | None = None) -> np.ndarray:
     """Sub-pixel centre (u, v) of the brightest blob of ``image − background``: the intensity-weighted
-    centroid of the positive part in a ``window`` around the maximum (pixel centres at integers)."""
+    centroid of the positive part in a square window around the maximum (pixel centres at integers).
+
+    The window is scaled to the blob (``window`` None): its half-width grows from 1 px until the positive part
+    on its border is below :data:`BLOB_EDGE_FRACTION` of the peak, then one more pixel — so a bead is centred
+    alike at every detector size (a fixed window cuts a large blob and biases its centre). An int ``window``
+    fixes the half-width (px)."""
     d = np.asarray(image, dtype=float) - (0.0 if background is None else np.asarray(background, dtype=float))
+    if d.ndim != 2 or not d.size or not np.all(np.isfinite(d)):
+        raise RenderingError(f"image must be a finite 2-D array (and background alike), got shape {d.shape}")
     v, u = np.unravel_index(np.argmax(d), d.shape)
-    v0, v1 = max(v - window, 0), min(v + window + 1, d.shape[0])
-    u0, u1 = max(u - window, 0), min(u + window + 1, d.shape[1])
+    peak = d[v, u]
+    if not peak > 0:
+        raise RenderingError("image − background has no positive blob")
+
+    def box(w):
+        return max(v - w, 0), min(v + w + 1, d.shape[0]), max(u - w, 0), min(u + w + 1, d.shape[1])
+
+    if window is None:
+        window, largest = 1, max(d.shape)
+        while window < largest:
+            v0, v1, u0, u1 = box(window)
+            block = np.clip(d[v0:v1, u0:u1], 0.0, None)
+            ring = max(block[0].max(), block[-1].max(), block[:, 0].max(), block[:, -1].max())
+            if ring < BLOB_EDGE_FRACTION * peak:
+                break
+            window += 1
+        window += 1
+    v0, v1, u0, u1 = box(int(window))
     w = np.clip(d[v0:v1, u0:u1], 0.0, None)
     vv, uu = np.mgrid[v0:v1, u0:u1]
     return np.array([(w * uu).sum() / w.sum(), (w * vv).sum() / w.sum()])
