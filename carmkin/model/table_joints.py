@@ -80,10 +80,10 @@ class TableJoint:
         """``(4 j, 4 k, point_j, point_k, σ)`` when the axis is exactly σ·e_i, (i, j, k) a cyclic order of
         0, 1, 2 (the rows j and k turn, offsets in a row-major 4x4), else None."""
         for i in range(3):
-            if abs(self.axis[i]) == 1.0:
-                j, k = (i + 1) % 3, (i + 2) % 3
+            j, k = (i + 1) % 3, (i + 2) % 3
+            if abs(self.axis[i]) == 1.0 and self.axis[j] == 0.0 and self.axis[k] == 0.0:
                 return 4 * j, 4 * k, self.point[j], self.point[k], self.axis[i]
-        return None
+        return None  # (a unit axis may have a component that rounds to ±1 beside tiny others: not this case)
 
     def apply_inverse_motion(self, rows: list[float], value: float) -> list[float]:
         """``e^{-ξ q} · B`` in place for a rigid transform B given row-major (its first 12 Python floats,

@@ -165,3 +165,17 @@ def test_scalar_fk_refuses_what_the_checked_path_refuses(system):
                 list(q[:-1]) + [float("nan")], tuple(q) + (0.0,)):
         with pytest.raises(carmkin.InvalidConfigurationError, match="q"):
             system.fk(bad)
+
+
+def test_scalar_fk_takes_a_nearly_coordinate_axis_as_any_axis():
+    """A unit axis whose largest component rounds to 1.0 beside a tiny one (found by hypothesis) is not a
+    coordinate axis: dropping its 2e-10 component moved the source by 1e-10 m."""
+    from dataclasses import replace
+
+    joint = TableJoint("table_height", False, (0.0, 1.0, 2.253846257937214e-10), (0.0, 0.0, 0.0),
+                       JointRange(-0.5, 0.0, "table_height"))
+    system = PRESET.replace(table=replace(PRESET.table, joints=(joint,)))
+    q = np.array([0.0, -0.5, 0.0, 0.0, 0.0, 0.0, 0.0])
+    T, oracle = system.fk(q), _pinocchio_source(system, q)
+    assert np.linalg.norm(T[:3, 3] - oracle[:3, 3]) <= 1e-12
+    assert rotation_angle(T[:3, :3], oracle[:3, :3]) <= 1e-12
