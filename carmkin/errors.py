@@ -147,7 +147,7 @@ class ImagingError(CarmkinError):
     """Bad input to the imaging geometry (shape, non-finite value, point behind the source, ...)."""
 
 
-# --- carmkin.imaging.panorama --------------------------------------------------------------------
+# --- carmkin.panorama ----------------------------------------------------------------------------
 
 
 class PanoramaError(CarmkinError):

@@ -90,6 +90,25 @@ def real_array(
     return array
 
 
+def plain_floats(value, n: int, limit: float = MAGNITUDE_LIMIT) -> list[float] | None:
+    """The ``n`` values of ``value`` as a list of Python floats when it is plainly valid — a float64 array
+    of shape (n,), or a list or tuple of ``n`` Python floats, every value finite and within ``limit`` — and
+    None for anything else (the caller then takes its full check, :func:`real_array`, which says what is
+    wrong). The scalar fast paths of FK and IK: ~10x cheaper than building a checked array."""
+    if type(value) is np.ndarray:
+        if value.shape != (n,) or value.dtype != np.float64:
+            return None
+        values = value.tolist()
+    elif type(value) in (list, tuple) and len(value) == n and all(type(v) is float for v in value):
+        values = list(value)
+    else:
+        return None
+    # a NaN or inf makes the sum non-finite; a sum that overflows has a value beyond any limit
+    if not (values and math.isfinite(sum(values)) and max(map(abs, values)) <= limit):
+        return None
+    return values
+
+
 def real_scalar(
     value,
     name: str,

@@ -14,7 +14,7 @@ from fuzz_engine import Case, maybe_junk
 
 import carmkin
 from carmkin import imaging, transforms, validation
-from carmkin.imaging import panorama
+from carmkin.panorama import planner as panorama
 from carmkin.interop import simulators as sim
 
 PRESET = carmkin.load_preset("siremobile-iso-c3d")

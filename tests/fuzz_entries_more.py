@@ -126,7 +126,7 @@ SHOT_PLANNER = None
 
 def panorama_shot(rng):
     global SHOT_PLANNER
-    from carmkin.imaging.panorama import PanoramaPlanner
+    from carmkin.panorama import PanoramaPlanner
 
     SHOT_PLANNER = SHOT_PLANNER or PanoramaPlanner(PRESET)
     p = SHOT_PLANNER
@@ -141,7 +141,7 @@ def panorama_shot(rng):
 
 
 def perturb(rng):
-    from carmkin.imaging.phantom import perturb as fn
+    from carmkin.panorama.phantom import perturb as fn
 
     T = g.pose(rng)
     zero = rng.random() < 0.3

@@ -34,7 +34,7 @@ def test_plots_are_shown_inline(path):
 # --- executed: every cell that draws a figure shows it ------------------------------------------------------
 #: A call that makes a matplotlib figure (pyplot, the object API, carmkin's plotting helpers, ``*.plot(...)``).
 FIGURE_CALL = re.compile(r"\bplt\.(?:subplots|figure|plot|imshow|scatter|semilogy|bar|hist)\(|\bFigure\(|"
-                         r"\bplots\.\w+\(|\bplot_\w+\(|\b\w+\.plot\(")
+                         r"\b(?:plots|figures)\.\w+\(|\bplot_\w+\(|\b\w+\.plot\(")
 
 
 def _hooks():
@@ -49,7 +49,7 @@ def _hooks():
 
 
 def test_the_figure_rule_recognises_figure_cells():
-    for source in ("fig, ax = plt.subplots()", "fig = Figure(figsize=(6, 3))", "plots.workspace_excess(result)",
+    for source in ("fig, ax = plt.subplots()", "fig = Figure(figsize=(6, 3))", "figures.workspace_excess(result)", "plots.singularity_maps(s, q, p)",
                    "panorama.plot_validity_map(planner, us, vs, grid)", "tw.plot(results)", "plt.imshow(image)"):
         assert FIGURE_CALL.search(source), source
     for source in ("print(result.success)", "viewer.show_ghost(q)", "np.polyfit(x, y, 1)"):

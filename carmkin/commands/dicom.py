@@ -83,12 +83,12 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _read(system, q, args, origin, ds) -> int:
-    from carmkin.interop import dicom_io
+    from carmkin.reposition.dicom import moves_for_dataset
 
-    view, result = dicom_io.moves_for_dataset(system, ds, q_current=q,
-                                              isocenter=millimetres(args.isocenter_mm, "--isocenter-mm"),
-                                              patient_origin=origin, patient_position=args.patient,
-                                              convention=args.positioner_convention)
+    view, result = moves_for_dataset(system, ds, q_current=q,
+                                     isocenter=millimetres(args.isocenter_mm, "--isocenter-mm"),
+                                     patient_origin=origin, patient_position=args.patient,
+                                     convention=args.positioner_convention)
     # Nothing is printed before the file and its geometry are read: a bad file is one line on stderr, exit 2.
     print(f"preset {system.name}: q = {describe(system, q)}")
     print(f"view from the {view.source}: source at {np.round(view.pose[:3, 3] * 1e3, 3)} mm (table frame), "

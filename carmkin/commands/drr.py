@@ -64,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
     status = 0 if error <= 0.5 else 1
     figures = [("DRR", image, None)]
     if args.panorama_mm:
-        from carmkin.interop.drr_panorama import panorama_experiment
+        from carmkin.panorama.drr import panorama_experiment
 
         T_table_ct = volume.in_table("HFS", (iso[0], iso[1] + 0.12, iso[2]))
         result = panorama_experiment(system, volume, T_table_ct, q, args.panorama_mm / 1e3, args.overlap,

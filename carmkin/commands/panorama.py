@@ -112,7 +112,7 @@ def _write_html(system, planner, shots, path) -> None:
 
 
 def _planner(system, args):
-    from carmkin.imaging import panorama as pano
+    from carmkin import panorama as pano
 
     q = None
     if args.q_mm_deg is not None:
@@ -198,7 +198,7 @@ def run(args: argparse.Namespace) -> int:
 def _run_map(system, planner, args) -> int:
     import matplotlib
 
-    from carmkin.imaging import panorama as pano
+    from carmkin import panorama as pano
 
     matplotlib.use("Agg")
     w, h = planner.size
@@ -220,7 +220,7 @@ def _run_map(system, planner, args) -> int:
 
 
 def _run_parallax(system, planner, args) -> int:
-    from carmkin.imaging import phantom as ph
+    from carmkin.panorama import phantom as ph
 
     levels = [parse_numbers(item, 2, "--noise") for item in args.noise.split(";") if item.strip()]
     if not levels or any(np.any(level < 0) for level in levels):

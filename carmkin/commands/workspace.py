@@ -138,8 +138,8 @@ def run(args: argparse.Namespace) -> int:
             json.dump(result.as_json(), stream, indent=2)
         print(f"wrote {args.json}")
     if args.plot:
-        from carmkin import plots
+        from carmkin.studies import figures
 
-        plots.workspace_excess(result, args.plot)
+        figures.workspace_excess(result, args.plot)
         print(f"wrote {args.plot}")
     return 0

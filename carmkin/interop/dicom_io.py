@@ -1,5 +1,6 @@
-"""Read and write the geometry of XA and Enhanced XA datasets with pydicom (the ``dicom`` extra), and find
-the joint and table moves that give the view of a DICOM image through :func:`carmkin.qp_ik.solve`.
+"""Read and write the geometry of XA and Enhanced XA datasets with pydicom (the ``dicom`` extra). The joint
+and table moves that give the view of a DICOM image are the repositioning planner's
+(:func:`carmkin.reposition.dicom.moves_for_dataset`).
 
 Written datasets are synthetic and carry geometry only (no pixel data): enough for a reader of the geometry
 attributes and for round-trip tests. Attribute keywords are pydicom's (PS3.6 names without spaces).
@@ -223,18 +224,3 @@ def _source_to_isocenter(ds, given) -> float:
                  "(0018,1111) is the distance to the table or support nearest the patient, not to the isocentre: "
                  "pass source_to_isocenter= in m)")
 
-
-def moves_for_dataset(system, ds, q_current=None, isocenter=None, patient_origin=(0.0, 0.0, 0.0), *,
-                      frame: int = 0, patient_position: str | None = None, convention: str = dicom.DEFAULT_CONVENTION,
-                      **solve_kwargs):
-    """``(view, result)``: the dataset's view (:func:`view_from_dataset`, same arguments) and the
-    :func:`carmkin.qp_ik.solve` result reaching it from ``q_current`` (joints and table joints;
-    ``result.q − q_current`` are the moves). An Enhanced XA view is a full pose; XA angles fix the source
-    position and the beam, the rotation about the beam stays free (:class:`carmkin.qp_ik.AxisTarget`)."""
-    from carmkin import qp_ik
-
-    dicom._system(system)
-    view = view_from_dataset(ds, isocenter, patient_origin, frame=frame, patient_position=patient_position,
-                             convention=convention)
-    target = view.pose if view.full_pose else qp_ik.AxisTarget(tuple(view.pose[:3, 3]), tuple(view.pose[:3, 2]))
-    return view, qp_ik.solve(system, target, q_current=q_current, **solve_kwargs)

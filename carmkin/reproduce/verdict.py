@@ -64,18 +64,22 @@ def judge(experiment: str, quantity: str, seed: float, values, seed_error: float
 
 
 def rows_4_6_2(system, model: ErrorModel, repeats: int, tasks: int = 10) -> list[Row]:
-    from .repositioning import SEED, run, summary
+    from carmkin.seed import SEED_RESULTS
+
+    from .repositioning import run, summary
 
     runs = [summary(run(system, model, tasks, seed)) for seed in range(repeats)]
     out = []
-    for key, (mean, std, _, _) in SEED.items():
+    for key, (mean, std, _, _) in SEED_RESULTS.items():
         out.append(judge("4.6.2", f"mean {key}", mean, [r[key][0] for r in runs], std / math.sqrt(10)))
         out.append(judge("4.6.2", f"std {key}", std, [r[key][1] for r in runs]))
     return out
 
 
 def rows_4_6_3(system, model: ErrorModel, repeats: int, procedures: int = 5) -> list[Row]:
-    from .stitching import SEED_TABLE_4_6, run, table
+    from carmkin.seed import SEED_TABLE_4_6
+
+    from .stitching import run, table
 
     runs = [table(run(system, model, procedures, seed))["overall"] for seed in range(repeats)]
     seed, n = SEED_TABLE_4_6["overall"], 5
@@ -90,7 +94,9 @@ def rows_4_6_3(system, model: ErrorModel, repeats: int, procedures: int = 5) -> 
 
 
 def rows_3_1(system, model: ErrorModel, repeats: int) -> list[Row]:
-    from .chapter3 import SEED_TABLE_3_1, table_3_1
+    from carmkin.seed import SEED_TABLE_3_1
+
+    from .chapter3 import table_3_1
 
     runs = [table_3_1(system, model, 2, seed)["overall"] for seed in range(repeats)]
     out = []
@@ -105,7 +111,9 @@ def rows_3_1(system, model: ErrorModel, repeats: int) -> list[Row]:
 
 
 def rows_3_2(system, model: ErrorModel, repeats: int) -> list[Row]:
-    from .chapter3 import SEED_TABLE_3_2, table_3_2
+    from carmkin.seed import SEED_TABLE_3_2
+
+    from .chapter3 import table_3_2
 
     runs = [table_3_2(system, model, seed) for seed in range(repeats)]
     return [judge("3.2", f"{key} by {m}", SEED_TABLE_3_2[key][i], [r[m][key] for r in runs])

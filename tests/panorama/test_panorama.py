@@ -12,8 +12,8 @@ from strategies import configurations, finite, systems
 import carmkin
 from carmkin import imaging
 from carmkin.cli import main
-from carmkin.imaging import phantom
-from carmkin.imaging.panorama import CATEGORIES, PanoramaError, PanoramaPlanner, pose_residual
+from carmkin.panorama import CATEGORIES, PanoramaError, PanoramaPlanner, phantom
+from carmkin.transforms import pose_residual
 
 SYSTEM = carmkin.load_preset("siremobile-iso-c3d")
 PLANNER = PanoramaPlanner(SYSTEM, fallback=False)
