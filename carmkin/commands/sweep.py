@@ -139,9 +139,9 @@ def _export(sweep, paths, plot) -> None:
 
 
 def _html(sweep, path) -> None:
-    import meshcat.geometry as g
+    from carmkin.viz import CArmViewer  # first: it imports meshcat without its deprecation warning
 
-    from carmkin.viz import CArmViewer
+    import meshcat.geometry as g  # noqa: I001
 
     q = np.where(np.isfinite(sweep.q), sweep.q, sweep.q_plain)
     viewer = CArmViewer(sweep.system, q=q[0])
