@@ -29,6 +29,7 @@ from ._common import (
     JOINTS_FLAG,
     JOINTS_METAVAR,
     MM_PER_M,
+    add_alias,
     add_joints_argument,
     add_preset_argument,
     integer,
@@ -45,12 +46,14 @@ HELP = "show the C-arm + table in the browser (meshcat on 127.0.0.1, or --html F
 def register(parser: argparse.ArgumentParser) -> None:
     add_preset_argument(parser)
     add_joints_argument(parser, "configuration to show", "middle of the ranges", old_names=("--q",))
-    parser.add_argument("--target", metavar=JOINTS_METAVAR,
-                        help="target configuration: drawn as a ghost, move animated")
-    parser.add_argument("--target-pose", metavar="FILE",
+    parser.add_argument("--to-q-mm-deg", dest="to_q_mm_deg", metavar=JOINTS_METAVAR,
+                        help="configuration to move to (mm/deg, as --q-mm-deg): drawn as a ghost, move animated")
+    add_alias(parser, "--target", "--to-q-mm-deg", "to_q_mm_deg", metavar=JOINTS_METAVAR)
+    add_alias(parser, "--target-pose", "--to-pose", "to_pose", metavar="FILE")
+    parser.add_argument("--to-pose", metavar="FILE",
                         help="pose of xray_source in the table frame, translation in mm (4x4 text matrix, or JSON "
                         "as for carmkin ik --pose-file; a nearly rigid one is projected, with a note): ghost cone")
-    parser.add_argument("--no-animate", action="store_true", help="with --target: only the ghost, no animation")
+    parser.add_argument("--no-animate", action="store_true", help="with --to-q-mm-deg: only the ghost, no animation")
     parser.add_argument("--frames", type=integer(2), default=40, help="frames of the animated move (default 40)")
     parser.add_argument("--fps", type=number(0.0, open_minimum=True), default=20.0, help="frames per second of the move (default 20)")
     parser.add_argument("--margin-mm", type=number(0.0, open_minimum=True, unit="mm"), default=100.0,
@@ -118,8 +121,8 @@ def run(args: argparse.Namespace) -> int:
 
     system = system_from_args(args)
     q = parse_joints(args.q_mm_deg, system, JOINTS_FLAG) if args.q_mm_deg else None  # every input checked before any work
-    q_target = parse_joints(args.target, system, "--target") if args.target else None
-    T_target = read_pose(args.target_pose, "--target-pose") if args.target_pose else None
+    q_target = parse_joints(args.to_q_mm_deg, system, "--to-q-mm-deg") if args.to_q_mm_deg else None
+    T_target = read_pose(args.to_pose, "--to-pose") if args.to_pose else None
     if args.html:
         args.html = output_path(args.html, "--html", ("html", "htm"))
     if args.png:

@@ -7,14 +7,13 @@ secondary CRA +, CAU −; degrees) of --target-mm (table frame, mm) for a patien
 view instead (`carmkin views plan --standard list` lists them). It prints the joints (mm, deg), the clearance
 to patient, table and floor (mm), and when the view is unreachable the reason and the nearest reachable view.
 `carmkin views map` prints how many (primary, secondary) cells are reachable (default −90…90 × −45…45 at
---step-deg 5); --plot writes the map as a figure, --html a static page with the sphere of view directions
+--step-deg 5); --png writes the map as a figure, --html a static page with the sphere of view directions
 coloured by clearance, --json the cells. Exit 1 when a planned view is unreachable.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 
 import numpy as np
 
@@ -57,8 +56,8 @@ def register(parser: argparse.ArgumentParser) -> None:
                       help="source-to-target distance (mm; default: free)")
     plan.add_argument("--rotation-deg", type=common.number(-180.0, 180.0, unit="deg"),
                       help="detector rotation about the beam (deg, as the plan prints it; default: free)")
-    plan.add_argument("--q-mm-deg", metavar="Q", help="current joints (mm, deg): the plan moves least from them")
-    plan.add_argument("--json", action="store_true", help="print the plan as JSON")
+    common.add_joints_argument(plan, "the current configuration: the plan moves least from it", "none")
+    common.add_json_argument(plan, "the plan")
     plan.set_defaults(action_run=_plan)
     cmap = sub.add_parser("map", help="map reachable views", description=__doc__,
                           formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -71,9 +70,9 @@ def register(parser: argparse.ArgumentParser) -> None:
     cmap.add_argument("--compare", action="store_true",
                       help="side by side: the C-arm alone, with the table translation, and with the motorized "
                            "preset's table joints (each at its limits, one at a time)")
-    cmap.add_argument("--plot", metavar="FILE", help="write the map as a figure (png, pdf, svg, ...)")
+    common.add_png_argument(cmap, "the map", old_names=("--plot",))
     cmap.add_argument("--html", metavar="FILE", help="write a static page: the sphere of views coloured by clearance")
-    cmap.add_argument("--json", metavar="FILE", help="write the cells as JSON")
+    common.add_json_argument(cmap, "the cells")
     cmap.set_defaults(action_run=_map)
 
 
@@ -135,10 +134,8 @@ def _plan(args: argparse.Namespace) -> int:
 
 
 def _report(args, system, plan, position) -> int:
-    if args.json:
-        print(json.dumps(_plan_json(system, plan, position), indent=2))
-    else:
-        _print_plan(system, plan, position)
+    _print_plan(system, plan, position)
+    common.write_json(args, _plan_json(system, plan, position))
     return 0 if plan.success else 1
 
 
@@ -204,9 +201,9 @@ def _map(args: argparse.Namespace) -> int:
     target = common.parse_numbers(args.target_mm, 3, "--target-mm") / MM
     primary = _range(args.primary_range_deg, "--primary-range-deg", args.step_deg)
     secondary = _range(args.secondary_range_deg, "--secondary-range-deg", args.step_deg)
-    paths = {k: v for k, v in (("plot", args.plot and common.plot_path(args.plot, "--plot")),
+    paths = {k: v for k, v in (("plot", args.png and common.plot_path(args.png, "--png")),
                                ("html", args.html and common.output_path(args.html, "--html", ("html",))),
-                               ("json", args.json and common.output_path(args.json, "--json", ("json",)))) if v}
+                               ("json", args.json)) if v}
     patient = _patient(system, args)
     if args.compare:
         return _compare(args, system, target, primary, secondary, patient, paths)
@@ -237,8 +234,7 @@ def _map(args: argparse.Namespace) -> int:
                   "binding": str(m.binding[i, j]),
                   "q": common.joints_json(system, m.q[i, j]) if m.reachable[i, j] else None}
                  for i, p in enumerate(m.primary_deg) for j, s in enumerate(m.secondary_deg)]
-        paths["json"].write_text(json.dumps({"target_mm": list(target * MM), "cells": cells}), encoding="utf-8")
-        print(f"wrote {paths['json']}")
+        common.write_json(args, {"target_mm": list(target * MM), "cells": cells})
     return 0
 
 
@@ -250,7 +246,7 @@ def _compare(args, system, target, primary, secondary, patient, paths) -> int:
         raise common.UsageError("--compare: give a 6-joint system (the third map adds the motorized preset's table "
                                 "joints to it)")
     if "html" in paths or "json" in paths:
-        raise common.UsageError("--compare writes --plot only")
+        raise common.UsageError("--compare writes --png only")
     import dataclasses
 
     # This C-arm on the motorized preset's table joints.

@@ -215,7 +215,7 @@ def test_cli_shot_plan_map_parallax(tmp_path, capsys):
     assert main(["panorama", "plan", "--length-mm", "400", "--overlap", "0"]) == 0
     assert "plan VALID" in capsys.readouterr().out
     png = tmp_path / "map.png"
-    assert main(["panorama", "map", "--grid", "9", "--out", str(png)]) == 0
+    assert main(["panorama", "map", "--grid", "9", "--png", str(png)]) == 0
     assert png.stat().st_size > 1000
     assert main(["panorama", "parallax", "--trials", "2", "--noise", "0.1,0"]) == 0
     assert "stitching plane" in capsys.readouterr().out
