@@ -90,13 +90,15 @@ def main(argv: list[str] | None = None) -> int:
         os.environ.setdefault("TQDM_DISABLE", "1")
     try:
         from carmkin.commands._common import STDOUT, check_output_paths
+        from carmkin.commands._progress import Heartbeat
 
         check_output_paths(args)  # every file the command will write, before any work
         if getattr(args, "json", None) == STDOUT:  # the JSON alone on stdout, instead of the text report
             args.json_stream = sys.stdout
-            with open(os.devnull, "w") as quiet, contextlib.redirect_stdout(quiet):
+            with open(os.devnull, "w") as quiet, contextlib.redirect_stdout(quiet), Heartbeat(name):
                 return int(args.run(args) or 0)
-        return int(args.run(args) or 0)
+        with Heartbeat(name):  # a line on a terminal's stderr while a command without its own bar works
+            return int(args.run(args) or 0)
     except CarmkinError as exc:
         print(f"{prefix} {_one_line(exc)}", file=sys.stderr)
         return USAGE_ERROR

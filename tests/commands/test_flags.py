@@ -150,6 +150,18 @@ def test_an_unknown_option_names_the_subcommand(command, capsys):
                                         f"(see carmkin {command} --help)"]
 
 
+@pytest.mark.parametrize("command", sorted(set(LEAVES) - NO_JSON))
+def test_an_output_that_cannot_be_written_is_refused_before_any_work(command, tmp_path, capsys):
+    blocker = tmp_path / "a-file"
+    blocker.write_text("")
+    required = {"ik": ["--pose=0,0,500,0,0,0"], "reproduce": ["all"],
+                "panorama shot": ["--principal-point", "400,300"]}.get(command, [])
+    code, out, err = run([*command.split(), *required, "--json", blocker / "x.json"], capsys)
+    assert code == 2 and not out
+    assert err.strip().splitlines() == [f"carmkin {command}: error: --json {blocker / 'x.json'}: cannot create the "
+                                        f"folder '{blocker}' (File exists)"]
+
+
 @pytest.mark.parametrize("former", sorted(ALIASES))
 def test_former_names_fill_the_new_option_with_a_note(former, capsys):
     command, dest, value = ALIASES[former]
