@@ -29,6 +29,7 @@ from carmkin.errors import (  # noqa: F401 (defined there, raised here)
 from carmkin.model.system import CArmSystem
 from carmkin.presets import list_presets, load_preset
 from carmkin.transforms import check_rigid_transform, nearest_rigid
+from carmkin.validation import unit_slip
 
 DEFAULT_PRESET = "siremobile-iso-c3d"
 #: Factors from SI to the command line's units: m -> mm, rad -> degrees.
@@ -360,7 +361,7 @@ def number(minimum: float | None = None, maximum: float | None = None, open_mini
         if not math.isfinite(value) or too_low or too_high:
             raise argparse.ArgumentTypeError(f"expected a finite number "
                                              f"{_bounds(minimum, maximum, open_minimum, open_maximum)}{_unit(unit)}, "
-                                             f"got {text}")
+                                             f"got {text}{unit_slip(value, minimum, maximum, unit)}")
         return value
     parse.__name__ = "number"
     return parse

@@ -44,6 +44,10 @@ from ._common import (
     write_json,
 )
 
+#: Lengths a panorama can cover (mm): from a fraction of one image to more than any table travel; outside, the
+#: value is a unit slip (0.4 given for 400 mm) and is refused, naming it.
+PANORAMA_LENGTH_MM = (10.0, 5000.0)
+
 HELP = "plan parallax-free panoramas: one shot, a sequence, the validity map, the parallax check"
 
 
@@ -59,7 +63,8 @@ def _add_common(parser: argparse.ArgumentParser) -> None:
 
 
 def _add_line(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--length-mm", type=number(0.0, open_minimum=True, unit="mm"), default=400.0, help="length to cover (default 400)")
+    parser.add_argument("--length-mm", type=number(*PANORAMA_LENGTH_MM, unit="mm"), default=400.0,
+                        help=f"length to cover, {PANORAMA_LENGTH_MM[0]:g} to {PANORAMA_LENGTH_MM[1]:g} mm (default 400)")
     parser.add_argument("--overlap", type=number(0.0, 1.0, open_maximum=True), default=0.0,
                         help="overlap of consecutive shots, fraction of a shot in [0, 1) (default 0)")
     parser.add_argument("--direction-px", metavar="DU,DV",

@@ -25,7 +25,11 @@ from carmkin.errors import UsageError
 
 from ._common import JOINTS_FLAG, MM_PER_M, add_joints_argument, add_json_argument, add_png_argument, \
     add_preset_argument, integer, joints_json, number, output_path, parse_joints, parse_numbers, plot_path, \
-    system_from_args, write_json
+    system_from_args, unit_slip, write_json
+
+#: Sizes of a box patient along each axis (mm): a newborn's limb to the longest body; outside, a unit slip
+#: (0.5,0.3,1.6 given in m) refused, naming it.
+PATIENT_BOX_MM = (20.0, 3000.0)
 
 HELP = "plan a collision-free cone-beam CT sweep, export its geometry (RTK, ASTRA, TIGRE), reconstruct it"
 
@@ -90,6 +94,11 @@ def _patient(text: str | None):
     values = parse_numbers(text, None, "--patient-box-mm")
     if len(values) not in (3, 6) or np.any(values[:3] <= 0):
         raise UsageError(f"--patient-box-mm needs W,H,L (> 0) and optionally X,Y,Z (mm), got {text!r}")
+    low, high = PATIENT_BOX_MM
+    for axis, size in zip("WHL", values[:3]):
+        if not low <= size <= high:
+            raise UsageError(f"--patient-box-mm {text}: {axis} = {size:g} mm is not a body size (expected {low:g} to "
+                             f"{high:g} mm){unit_slip(size, low, high, 'mm')}")
     centre = values[3:] if len(values) == 6 else np.zeros(3)
     return [Obstacle.box("patient", values[:3] / MM_PER_M, center=centre / MM_PER_M)]
 
