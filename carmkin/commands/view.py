@@ -39,6 +39,7 @@ from ._common import (
     read_pose,
     system_from_args,
 )
+from ._scene import add_patient_arguments, describe_patient, patient_from_args, table_top_y
 
 HELP = "show the C-arm + table in the browser (meshcat on 127.0.0.1, or --html FILE)"
 
@@ -60,14 +61,19 @@ def register(parser: argparse.ArgumentParser) -> None:
                         help="colour C-arm parts closer than this to the table/floor (default 100 mm)")
     parser.add_argument("--html", metavar="FILE", help="write a self-contained static page and exit")
     parser.add_argument("--png", metavar="FILE", help="also render the page to PNG with headless Chromium")
+    add_patient_arguments(parser, default="none")
     parser.add_argument("--port", type=integer(1, 65535), default=None,
                         help="HTTP port of the live viewer (default: 7000 or the next free one)")
     parser.add_argument("--serve-seconds", type=number(0.0, unit="s"), default=None,
                         help="stop serving after this many seconds (default: until Ctrl-C)")
 
 
-def _draw(viewer, args, q_target, T_target) -> None:
-    """Distances at the current configuration, target pose, ghost and move, as the flags ask."""
+def _draw(viewer, args, q_target, T_target, patient=None) -> None:
+    """Distances at the current configuration, the patient, target pose, ghost and move, as the flags ask."""
+    if patient is not None:
+        from carmkin.viz.views import draw_patient
+
+        draw_patient(viewer, patient)
     distances = viewer.show_distances(margin=args.margin_mm / MM_PER_M)
     for obstacle in sorted({d.obstacle for d in distances}):
         closest = min((d for d in distances if d.obstacle == obstacle), key=lambda d: d.distance)
@@ -105,7 +111,7 @@ def _serve(system, args, q, q_target, T_target) -> None:
     try:
         with LoopbackServer(port=args.port) as server:
             viewer = CArmViewer(system, server.visualizer(), q)
-            _draw(viewer, args, q_target, T_target)
+            _draw(viewer, args, q_target, T_target, patient_from_args(system, args))
             print(f"meshcat viewer: {server.web_url}  (listening on 127.0.0.1 only; Ctrl-C to stop)", flush=True)
             try:
                 stop.wait(args.serve_seconds)
@@ -127,9 +133,12 @@ def run(args: argparse.Namespace) -> int:
         args.html = output_path(args.html, "--html", ("html", "htm"))
     if args.png:
         args.png = output_path(args.png, "--png", ("png",))
+    patient = patient_from_args(system, args)
+    print(f"table top: upper surface at Y0 = {table_top_y(system) * MM_PER_M:+.1f} mm (Y0 points down); patient: "
+          f"{describe_patient(patient, args.patient_position)}")
     if args.html or args.png:
         viewer = CArmViewer(system, q=q)
-        _draw(viewer, args, q_target, T_target)
+        _draw(viewer, args, q_target, T_target, patient)
         _write_static(viewer, args)
     else:
         _serve(system, args, q, q_target, T_target)

@@ -58,6 +58,8 @@ def register(parser: argparse.ArgumentParser) -> None:
                       help="detector rotation about the beam (deg, as the plan prints it; default: free)")
     common.add_joints_argument(plan, "the current configuration: the plan moves least from it", "none")
     common.add_json_argument(plan, "the plan")
+    common.add_png_argument(plan, "the plan: table, patient, C-arm, beam and target (two orthographic views)")
+    plan.add_argument("--html", metavar="FILE", help="write the plan in the viewer: C-arm, table, patient, beam, target")
     plan.set_defaults(action_run=_plan)
     cmap = sub.add_parser("map", help="map reachable views", description=__doc__,
                           formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -134,8 +136,16 @@ def _plan(args: argparse.Namespace) -> int:
 
 
 def _report(args, system, plan, position) -> int:
+    from . import _scene
+
+    patient = None if isinstance(position, str) else position
+    print(_scene.describe_scene(system, plan.view.target, patient, getattr(patient, "position", position)))
     _print_plan(system, plan, position)
     common.write_json(args, _plan_json(system, plan, position))
+    shown = plan.q if plan.success else (plan.nearest.q if plan.nearest is not None else None)
+    if shown is not None:
+        _scene.write_figures(args, system, shown, patient, plan.view.target,
+                             f"view {_describe_view(plan.view, position)}" + ("" if plan.success else " (nearest drawn)"))
     return 0 if plan.success else 1
 
 
