@@ -85,3 +85,6 @@ def test_every_figure_cell_shows_its_figure(path):
     assert not silent, f"{path.name}: code cells {silent} (0-based among code cells) build a figure but show none"
     if path.name[:2] != "05":  # the viewer notebook shows 3D scenes (HTML), not figures
         assert any(shows_an_image(c) for c in cells), f"{path.name} shows no figure"
+    streams = [o.get("text", "") for c in cells for o in c.get("outputs", ()) if o.get("output_type") == "stream"]
+    leaked = [t for t in streams if "site-packages" in t or str(path.parents[1]) in t]
+    assert not leaked, f"{path.name} prints a machine path (a leaked warning?): {leaked[0][:300]}"
