@@ -59,7 +59,8 @@ def register(parser: argparse.ArgumentParser) -> None:
     sub = parser.add_subparsers(dest="action", required=True, metavar="ACTION")
     plan = sub.add_parser("plan", help="plan and check a sweep, export its geometry")
     _plan_arguments(plan)
-    plan.add_argument("--rtk-xml", metavar="FILE", help="write RTK's geometry XML (mm; needs the cbct extra)")
+    plan.add_argument("--rtk-xml", metavar="FILE",
+                      help="write RTK's geometry XML (mm; RTK's file format, written without itk-rtk)")
     plan.add_argument("--astra", metavar="FILE.npy", help="write ASTRA cone_vec rows (n, 12), mm")
     plan.add_argument("--tigre", metavar="FILE.npz", help="write TIGRE arbitrary-geometry arrays, mm")
     plan.add_argument("--html", metavar="FILE", help="write the arc in the viewer as a static page")
