@@ -18,6 +18,7 @@ import contextlib
 import importlib
 import os
 import pkgutil
+import re
 import sys
 
 from carmkin import _version
@@ -45,6 +46,15 @@ class OneLineParser(argparse.ArgumentParser):
         return namespace, extras
 
 
+def plain_text(doc: str | None) -> str | None:
+    """A docstring as ``--help`` shows it: reST roles and literals (``:class:`X```, ````x````, ```x```) as plain
+    text."""
+    if doc is None:
+        return None
+    doc = re.sub(r":(?:py:)?[a-z]+:`~?([^`]+)`", r"\1", doc)
+    return re.sub(r"``([^`]+)``|`([^`]+)`", lambda m: m[1] or m[2], doc)
+
+
 def _one_line(text: object) -> str:
     return " ".join(str(text).split())
 
@@ -65,7 +75,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"carmkin {_version()}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=OneLineParser)
     for name, module in _command_modules():
-        command = sub.add_parser(name, help=module.HELP, description=module.__doc__,
+        command = sub.add_parser(name, help=module.HELP, description=plain_text(module.__doc__),
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
         module.register(command)
         command.set_defaults(run=module.run)
@@ -76,6 +86,7 @@ def build_parser() -> argparse.ArgumentParser:
 def _name_every_parser(parser: argparse.ArgumentParser) -> None:
     """``args.prog``: the full name of the (sub)command that parsed (``carmkin panorama map``), for error lines."""
     parser.set_defaults(prog=parser.prog)
+    parser.description = plain_text(parser.description)
     for action in parser._actions:
         if isinstance(action, argparse._SubParsersAction):
             for child in action.choices.values():

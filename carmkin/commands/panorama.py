@@ -150,8 +150,8 @@ def _print_shot(system, shot, label: str = "shot") -> None:
           f"{'VALID' if shot.valid else 'INVALID (' + shot.category + ')'} [{shot.path}]")
     print(f"  joints: {_joints(system, shot.q)}")
     print(f"  moves:  {_joints(system, shot.moves)}")
-    print(f"  table translation Δd0 = {shot.table_translation * 1e3:+.3f} mm (the table moves by "
-          f"{-shot.table_translation * 1e3:+.3f} mm); FK residual {shot.residual:.2e}")
+    print(f"  table: d0 changes by {shot.table_translation * 1e3:+.3f} mm, i.e. the table top moves "
+          f"{-shot.table_translation * 1e3:+.3f} mm along Z0 relative to the C-arm; FK residual {shot.residual:.2e}")
     corners = shot.outline[:: (len(shot.outline) - 1) // 4][:4]
     print("  predicted image corners in the panorama (px): "
           + " ".join(f"({a:.1f}, {b:.1f})" for a, b in corners))
@@ -179,8 +179,8 @@ def _print_plan(system, plan) -> None:
           f"{np.array2string(plan.direction, precision=4)} (reference source frame); "
           f"{len(plan.shots)} shots, overlap {plan.overlap:g}")
     for k, (shot, (lo, hi)) in enumerate(zip(plan.shots, plan.extents)):
-        print(f"covers [{lo * 1e3:+.1f}, {hi * 1e3:+.1f}] mm on the object plane")
         _print_shot(system, shot, f"shot {k + 1}")
+        print(f"  covers [{lo * 1e3:+.1f}, {hi * 1e3:+.1f}] mm on the object plane")
     print(f"table translations Δd0 (mm, from the previous shot): "
           f"{np.array2string(plan.table_translations * 1e3, precision=2)}")
     print("plan VALID" if plan.valid else "plan INVALID: " + ", ".join(

@@ -66,10 +66,12 @@ def register(parser: argparse.ArgumentParser) -> None:
 def _print_table(result) -> None:
     from carmkin.studies import workspace
 
-    print(f"{'quantity':<18}{'d0 (mm)':>8}{'ours':>11}{'dissertation':>14}")
+    print(f"{'quantity':<22}{'d0 (mm)':>8}{'ours':>11}{'dissertation':>14}")
     for quantity, d0, ours, paper in workspace.comparison_rows(result):
         flag = "" if paper in ("—", ours) else "  *"
-        print(f"{quantity:<18}{d0:>8}{ours:>11}{paper:>14}{flag}")
+        joint, stat = quantity.split()
+        label = quantity if stat == "K" else f"{quantity} ({workspace.UNITS[joint][0]})"  # K is a count
+        print(f"{label:<22}{d0:>8}{ours:>11}{paper:>14}{flag}")
     print("(* differs from the printed value; see docs/errata/workspace.md)")
     keys = "".join(f"{workspace.translation_key(r.translation):>8}" for r in result.results)
     print(f"{'joint':<12}{keys}   (K per d0)")

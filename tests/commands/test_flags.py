@@ -181,3 +181,9 @@ def test_json_file_is_written_and_said(tmp_path, capsys):
     path = tmp_path / "ik.json"
     code, out, _ = run(["ik", "--pose=213,385,359,72.7,-87.5,52.7", "--json", path], capsys)
     assert code == 0 and f"wrote {path}" in out and json.loads(path.read_text())["valid"] is True
+
+
+@pytest.mark.parametrize("command", sorted(LEAVES))
+def test_help_shows_no_markup(command):
+    text = LEAVES[command].format_help()
+    assert "``" not in text and not re.search(r":(?:class|func|mod|data|meth):`", text), command
