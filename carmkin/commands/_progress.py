@@ -8,11 +8,13 @@ frames in a log). The heartbeat stays quiet while a tqdm bar is on screen and er
 
 from __future__ import annotations
 
+import os
 import sys
 import threading
 import time
 
-#: Seconds of silence before the heartbeat shows.
+#: Seconds of silence before the heartbeat shows (the environment variable ``CARMKIN_PROGRESS_DELAY_S`` may
+#: change it: 0 shows it at once, as the tests do).
 DELAY_S = 1.5
 #: Seconds between two refreshes of the heartbeat line.
 REFRESH_S = 0.5
@@ -29,7 +31,12 @@ class Heartbeat:
     on ``stream`` (default stderr), refreshed every :data:`REFRESH_S` until the block ends; nothing unless
     ``stream`` is a terminal."""
 
-    def __init__(self, name: str, stream=None, delay: float = DELAY_S, refresh: float = REFRESH_S):
+    def __init__(self, name: str, stream=None, delay: float | None = None, refresh: float = REFRESH_S):
+        if delay is None:
+            try:
+                delay = float(os.environ.get("CARMKIN_PROGRESS_DELAY_S", DELAY_S))
+            except ValueError:
+                delay = DELAY_S
         self.name, self.stream, self.delay, self.refresh = name, stream or sys.stderr, delay, refresh
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None

@@ -18,6 +18,7 @@ import argparse
 import numpy as np
 
 from . import _common as common
+from . import _scene
 
 HELP = "plan clinical views (LAO/RAO, CRA/CAU) around a patient, map reachable views"
 MM = 1000.0
@@ -27,16 +28,7 @@ def _common(parser: argparse.ArgumentParser) -> None:
     common.add_preset_argument(parser)
     parser.add_argument("--target-mm", metavar="X,Y,Z", default="0,0,0",
                         help="the point the beam passes through, table frame (mm, default 0,0,0)")
-    parser.add_argument("--patient", choices=("parametric", "none"), default="parametric",
-                        help="a parametric patient lying on the table (default) or none")
-    parser.add_argument("--patient-position", default="HFS", metavar="CODE",
-                        help="DICOM Patient Position (HFS, HFP, HFDR, HFDL, FFS, FFP, FFDR, FFDL; default HFS)")
-    parser.add_argument("--patient-height-mm", type=common.number(400.0, 2800.0, unit="mm"), default=1750.0,
-                        help="body height (mm, default 1750)")
-    parser.add_argument("--patient-mass-kg", type=common.number(1.0, 650.0, unit="kg"), default=75.0,
-                        help="body mass (kg, default 75)")
-    parser.add_argument("--patient-chest-z-mm", type=common.number(-3000.0, 3000.0, unit="mm"), default=0.0,
-                        help="the chest (nipple line) along the table, Z0 (mm, default 0)")
+    _scene.add_patient_arguments(parser, default="parametric")
     parser.add_argument("--margin-mm", type=common.number(0.0, 1000.0, unit="mm"), default=20.0,
                         help="clearance every moving part keeps (mm, default 20)")
 
@@ -83,12 +75,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _patient(system, args):
-    from carmkin.patient import ParametricPatient
-
-    if args.patient == "none":
-        return None
-    return ParametricPatient.on_table(system, args.patient_height_mm / MM, args.patient_mass_kg, args.patient_position,
-                                      args.patient_chest_z_mm / MM)
+    return _scene.patient_from_args(system, args)
 
 
 def _plan(args: argparse.Namespace) -> int:
@@ -136,8 +123,6 @@ def _plan(args: argparse.Namespace) -> int:
 
 
 def _report(args, system, plan, position) -> int:
-    from . import _scene
-
     patient = None if isinstance(position, str) else position
     print(_scene.describe_scene(system, plan.view.target, patient, getattr(patient, "position", position)))
     _print_plan(system, plan, position)

@@ -54,8 +54,10 @@ def test_no_heartbeat_without_a_terminal():
 def test_a_long_command_shows_progress_on_a_terminal():
     pty = pytest.importorskip("pty")
     master, slave = pty.openpty()
-    command = [sys.executable, "-m", "carmkin.cli", "reposition", "experiment", "--tasks", "10"]
-    process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=slave)
+    command = [sys.executable, "-m", "carmkin.cli", "reposition", "experiment", "--tasks", "3"]
+    # the heartbeat at once (its 1.5 s delay would make the test depend on the machine's speed)
+    process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=slave,
+                               env={**os.environ, "CARMKIN_PROGRESS_DELAY_S": "0"})
     os.close(slave)
     seen = b""
     try:
