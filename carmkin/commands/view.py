@@ -134,8 +134,9 @@ def run(args: argparse.Namespace) -> int:
     if args.png:
         args.png = output_path(args.png, "--png", ("png",))
     patient = patient_from_args(system, args)
-    print(f"table top: upper surface at Y0 = {table_top_y(system) * MM_PER_M:+.1f} mm (Y0 points down); patient: "
-          f"{describe_patient(patient, args.patient_position)}")
+    if patient is not None:
+        print(f"table top: upper surface at Y0 = {table_top_y(system) * MM_PER_M:+.1f} mm (Y0 points down); patient: "
+              f"{describe_patient(patient, args.patient_position)}")
     if args.html or args.png:
         viewer = CArmViewer(system, q=q)
         _draw(viewer, args, q_target, T_target, patient)
