@@ -388,6 +388,10 @@ def output_path(path: str, option: str, suffixes: tuple[str, ...] | None = None)
         raise UsageError(f"{option} {path}: is a folder, expected a file name")
     if target.parent.is_dir():
         return target
+    blocker = next((p for p in (target.parent, *target.parent.parents) if p.exists()), None)
+    if blocker is not None and not blocker.is_dir():
+        raise UsageError(f"{option} {path}: cannot create the folder {str(target.parent)!r} "
+                         f"({str(blocker)!r} is a file)")
     try:
         target.parent.mkdir(parents=True)
     except OSError as exc:
