@@ -93,8 +93,9 @@ def add_alias(parser: argparse.ArgumentParser, old: str, new: str, dest: str, **
 
 # --- the flag grammar (docs/cli.md): figures and JSON ---------------------------------------------------------
 #: argparse dests whose value is a file a command writes: checked (folder created, not a folder) before the work
-#: starts, by :func:`check_output_paths` (``carmkin.cli.main`` calls it).
-OUTPUT_DESTS = ("json", "png", "html", "out", "output", "rtk_xml", "astra", "tigre", "write_xa", "write_enhanced")
+#: starts, by :func:`check_output_paths` (``carmkin.cli.main`` calls it). An output *folder* (``--out DIR``) is
+#: the command's to check.
+OUTPUT_DESTS = ("json", "png", "html", "output", "rtk_xml", "astra", "tigre", "write_xa", "write_enhanced")
 #: ``--json -``: the JSON goes to stdout instead of the text report (notes and errors stay on stderr).
 STDOUT = "-"
 
