@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
@@ -81,4 +83,98 @@ def singularity_maps(system, q, path=None, pair: tuple[int, int] = (4, 5), n: in
         ax.set_title(f"{title} over ({names[pr[0]]}, {names[pr[1]]}); sin γ1 = "
                      f"{math.sin(system.setup.gamma1):+.3f}", fontsize=10)
     fig.suptitle(f"{system.name}: singularity maps (other joints at q)")
+    return save(fig, path, dpi=100)
+
+
+# --- a planned configuration with the patient (carmkin views plan --png) -------------------------------------
+#: Colours of the scene figure's parts.
+SCENE_COLOURS = {"table": "#8c8c8c", "patient": "#e8b98f", "carm": "#1f4e9c", "beam": "#d62728", "target": "#d62728"}
+
+
+def _obstacle_corners(obstacle) -> np.ndarray:
+    """(8, 3) corners (table frame, m) of the box that bounds ``obstacle`` (box, capsule, cylinder, sphere)."""
+    if obstacle.shape == "box":
+        half = np.asarray(obstacle.size) / 2
+    elif obstacle.shape == "sphere":
+        half = np.full(3, obstacle.size[0])
+    else:  # capsule or cylinder along its Z: (radius, length)
+        radius, length = obstacle.size
+        half = np.array([radius, radius, length / 2 + (radius if obstacle.shape == "capsule" else 0.0)])
+    signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
+    local = signs * half
+    return local @ obstacle.pose[:3, :3].T + obstacle.pose[:3, 3]
+
+
+def _turn(o, a, b) -> float:
+    """z of the cross product (a − o) × (b − o) of 2D points: > 0 for a left (counter-clockwise) turn."""
+    return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+
+def _hull(points: np.ndarray) -> np.ndarray:
+    """Counter-clockwise convex hull of 2D points (monotone chain), closed polygon vertices (k, 2)."""
+    pts = sorted(map(tuple, np.round(points, 12)))
+    if len(pts) < 3:
+        return np.array(pts)
+
+    def half(sequence):
+        out = []
+        for p in sequence:
+            while len(out) >= 2 and _turn(out[-2], out[-1], p) <= 0:
+                out.pop()
+            out.append(p)
+        return out
+
+    lower, upper = half(pts), half(reversed(pts))
+    return np.array(lower[:-1] + upper[:-1])
+
+
+def scene_figure(system, q, patient=None, target=None, path=None, title: str = "") -> Figure:
+    """Two orthographic views of the table frame (m shown as mm): the side view (Z0 across, Y0 up the page: Y0
+    points down) and the end view (X0 across): the table top, the patient's bodies (their bounding boxes' outlines),
+    the C-arm's DH frame origins joined in chain order, the X-ray beam from the source to the detector centre and
+    the ``target`` (3,) m. ``patient``: None, a list of Obstacle or a model with ``obstacles()``."""
+    from matplotlib.patches import Polygon
+
+    from carmkin.world.obstacles import as_obstacles
+
+    q = np.asarray(q, dtype=float)
+    frames = np.asarray(system.dh_frames(q))[:, :3, 3]
+    T = np.asarray(system.fk(q))
+    source = T[:3, 3]
+    detector = source + system.carm.source_to_detector * T[:3, 2]
+    top = np.eye(4)
+    top[:3, 3] = system.table.top_center
+    bodies = [("table", _obstacle_corners(type("Top", (), {"shape": "box", "size": system.table.top_size,
+                                                          "pose": top})()))]
+    bodies += [("patient", _obstacle_corners(o)) for o in as_obstacles(patient)]
+    fig = figure((11, 4.8))
+    views = (("side view: Z0 (mm) along the table", 2), ("end view: X0 (mm) across the table", 0))
+    for k, (label, axis) in enumerate(views):
+        ax = fig.add_subplot(1, 2, k + 1)
+        for kind, corners in bodies:
+            outline = _hull(corners[:, [axis, 1]] * 1e3)
+            ax.add_patch(Polygon(outline, closed=True, facecolor=SCENE_COLOURS[kind], edgecolor="k", alpha=0.5,
+                                 lw=0.5, label=kind))
+        chain = np.vstack((np.zeros(3), frames, source)) * 1e3
+        ax.plot(chain[:, axis], chain[:, 1], "-o", color=SCENE_COLOURS["carm"], ms=3, lw=2, label="C-arm (DH frames)")
+        beam = np.vstack((source, detector)) * 1e3
+        ax.plot(beam[:, axis], beam[:, 1], "--", color=SCENE_COLOURS["beam"], lw=1.5, label="beam")
+        ax.plot(*beam[1, [axis, 1]], "s", color=SCENE_COLOURS["beam"], ms=7, label="detector")
+        ax.plot(*beam[0, [axis, 1]], "^", color=SCENE_COLOURS["beam"], ms=7, label="source")
+        if target is not None:
+            t = np.asarray(target, dtype=float) * 1e3
+            ax.plot(t[axis], t[1], "x", color=SCENE_COLOURS["target"], ms=12, mew=2.5, label="target")
+        ax.set_xlabel(label)
+        ax.set_ylabel("Y0 (mm; Y0 points down: up the page is up)")
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.autoscale_view()
+        ax.invert_yaxis()
+        ax.grid(alpha=0.3)
+        if k == 0:
+            handles, labels = ax.get_legend_handles_labels()
+            unique = dict(zip(labels, handles))
+            ax.legend(unique.values(), unique.keys(), fontsize=7, loc="best")
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
     return save(fig, path, dpi=100)

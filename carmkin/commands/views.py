@@ -7,7 +7,7 @@ secondary CRA +, CAU −; degrees) of --target-mm (table frame, mm) for a patien
 view instead (`carmkin views plan --standard list` lists them). It prints the joints (mm, deg), the clearance
 to patient, table and floor (mm), and when the view is unreachable the reason and the nearest reachable view.
 `carmkin views map` prints how many (primary, secondary) cells are reachable (default −90…90 × −45…45 at
---step-deg 5); --plot writes the map as a figure, --html a static page with the sphere of view directions
+--step-deg 5); --png writes the map as a figure, --html a static page with the sphere of view directions
 coloured by clearance, --json the cells. Exit 1 when a planned view is unreachable.
 `carmkin views optimal --centreline FILE.csv [--others FILE.csv ...]` maps the foreshortening and overlap of a
 vessel over the (primary, secondary) grid with the reachability of each view, and prints the optimal view, the
@@ -20,11 +20,11 @@ position); --target-mm defaults to the centreline's midpoint. Exit 1 when no vie
 from __future__ import annotations
 
 import argparse
-import json
 
 import numpy as np
 
 from . import _common as common
+from . import _scene
 
 HELP = "plan clinical views (LAO/RAO, CRA/CAU) around a patient, map reachable views"
 MM = 1000.0
@@ -34,16 +34,7 @@ def _common(parser: argparse.ArgumentParser) -> None:
     common.add_preset_argument(parser)
     parser.add_argument("--target-mm", metavar="X,Y,Z", default="0,0,0",
                         help="the point the beam passes through, table frame (mm, default 0,0,0)")
-    parser.add_argument("--patient", choices=("parametric", "none"), default="parametric",
-                        help="a parametric patient lying on the table (default) or none")
-    parser.add_argument("--patient-position", default="HFS", metavar="CODE",
-                        help="DICOM Patient Position (HFS, HFP, HFDR, HFDL, FFS, FFP, FFDR, FFDL; default HFS)")
-    parser.add_argument("--patient-height-mm", type=common.number(400.0, 2800.0, unit="mm"), default=1750.0,
-                        help="body height (mm, default 1750)")
-    parser.add_argument("--patient-mass-kg", type=common.number(1.0, 650.0, unit="kg"), default=75.0,
-                        help="body mass (kg, default 75)")
-    parser.add_argument("--patient-chest-z-mm", type=common.number(-3000.0, 3000.0, unit="mm"), default=0.0,
-                        help="the chest (nipple line) along the table, Z0 (mm, default 0)")
+    _scene.add_patient_arguments(parser, default="parametric")
     parser.add_argument("--margin-mm", type=common.number(0.0, 1000.0, unit="mm"), default=20.0,
                         help="clearance every moving part keeps (mm, default 20)")
 
@@ -63,8 +54,10 @@ def register(parser: argparse.ArgumentParser) -> None:
                       help="source-to-target distance (mm; default: free)")
     plan.add_argument("--rotation-deg", type=common.number(-180.0, 180.0, unit="deg"),
                       help="detector rotation about the beam (deg, as the plan prints it; default: free)")
-    plan.add_argument("--q-mm-deg", metavar="Q", help="current joints (mm, deg): the plan moves least from them")
-    plan.add_argument("--json", action="store_true", help="print the plan as JSON")
+    common.add_joints_argument(plan, "the current configuration: the plan moves least from it", "none")
+    common.add_json_argument(plan, "the plan")
+    common.add_png_argument(plan, "the plan: table, patient, C-arm, beam and target (two orthographic views)")
+    plan.add_argument("--html", metavar="FILE", help="write the plan in the viewer: C-arm, table, patient, beam, target")
     plan.set_defaults(action_run=_plan)
     cmap = sub.add_parser("map", help="map reachable views", description=__doc__,
                           formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -77,9 +70,9 @@ def register(parser: argparse.ArgumentParser) -> None:
     cmap.add_argument("--compare", action="store_true",
                       help="side by side: the C-arm alone, with the table translation, and with the motorized "
                            "preset's table joints (each at its limits, one at a time)")
-    cmap.add_argument("--plot", metavar="FILE", help="write the map as a figure (png, pdf, svg, ...)")
+    common.add_png_argument(cmap, "the map", old_names=("--plot",))
     cmap.add_argument("--html", metavar="FILE", help="write a static page: the sphere of views coloured by clearance")
-    cmap.add_argument("--json", metavar="FILE", help="write the cells as JSON")
+    common.add_json_argument(cmap, "the cells")
     cmap.set_defaults(action_run=_map)
     best = sub.add_parser("optimal", help="the best reachable view of a vessel (foreshortening, overlap)",
                           description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -111,12 +104,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _patient(system, args):
-    from carmkin.patient import ParametricPatient
-
-    if args.patient == "none":
-        return None
-    return ParametricPatient.on_table(system, args.patient_height_mm / MM, args.patient_mass_kg, args.patient_position,
-                                      args.patient_chest_z_mm / MM)
+    return _scene.patient_from_args(system, args)
 
 
 def _plan(args: argparse.Namespace) -> int:
@@ -164,10 +152,14 @@ def _plan(args: argparse.Namespace) -> int:
 
 
 def _report(args, system, plan, position) -> int:
-    if args.json:
-        print(json.dumps(_plan_json(system, plan, position), indent=2))
-    else:
-        _print_plan(system, plan, position)
+    patient = None if isinstance(position, str) else position
+    print(_scene.describe_scene(system, plan.view.target, patient, getattr(patient, "position", position)))
+    _print_plan(system, plan, position)
+    common.write_json(args, _plan_json(system, plan, position))
+    shown = plan.q if plan.success else (plan.nearest.q if plan.nearest is not None else None)
+    if shown is not None:
+        _scene.write_figures(args, system, shown, patient, plan.view.target,
+                             f"view {_describe_view(plan.view, position)}" + ("" if plan.success else " (nearest drawn)"))
     return 0 if plan.success else 1
 
 
@@ -233,9 +225,9 @@ def _map(args: argparse.Namespace) -> int:
     target = common.parse_numbers(args.target_mm, 3, "--target-mm") / MM
     primary = _range(args.primary_range_deg, "--primary-range-deg", args.step_deg)
     secondary = _range(args.secondary_range_deg, "--secondary-range-deg", args.step_deg)
-    paths = {k: v for k, v in (("plot", args.plot and common.plot_path(args.plot, "--plot")),
+    paths = {k: v for k, v in (("plot", args.png and common.plot_path(args.png, "--png")),
                                ("html", args.html and common.output_path(args.html, "--html", ("html",))),
-                               ("json", args.json and common.output_path(args.json, "--json", ("json",)))) if v}
+                               ("json", args.json)) if v}
     patient = _patient(system, args)
     if args.compare:
         return _compare(args, system, target, primary, secondary, patient, paths)
@@ -266,8 +258,7 @@ def _map(args: argparse.Namespace) -> int:
                   "binding": str(m.binding[i, j]),
                   "q": common.joints_json(system, m.q[i, j]) if m.reachable[i, j] else None}
                  for i, p in enumerate(m.primary_deg) for j, s in enumerate(m.secondary_deg)]
-        paths["json"].write_text(json.dumps({"target_mm": list(target * MM), "cells": cells}), encoding="utf-8")
-        print(f"wrote {paths['json']}")
+        common.write_json(args, {"target_mm": list(target * MM), "cells": cells})
     return 0
 
 
@@ -279,7 +270,7 @@ def _compare(args, system, target, primary, secondary, patient, paths) -> int:
         raise common.UsageError("--compare: give a 6-joint system (the third map adds the motorized preset's table "
                                 "joints to it)")
     if "html" in paths or "json" in paths:
-        raise common.UsageError("--compare writes --plot only")
+        raise common.UsageError("--compare writes --png only")
     import dataclasses
 
     # This C-arm on the motorized preset's table joints.

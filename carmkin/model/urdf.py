@@ -74,6 +74,9 @@ def urdf_text(system) -> str:
 
     with resources.as_file(xacro_path()) as path:
         document = xacro.process_file(str(path), mappings=xacro_arguments(system))
+        for node in document.childNodes:  # xacro's banner names the file: no machine path in the URDF
+            if node.nodeType == node.COMMENT_NODE and str(path) in node.data:
+                node.data = node.data.replace(str(path), f"carmkin.urdf/{path.name}")
     return document.toprettyxml(indent="  ")
 
 

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from pathlib import Path
+
 import numpy as np
 
 from carmkin.errors import PatientModelError
@@ -53,9 +55,11 @@ class CTPatient:
         from carmkin.extras import require
         from carmkin.patient.volume import RAS_TO_LPS, load_ct
 
-        measure = require("skimage.measure", "ct")
         slab = real_scalar(slab, "slab", error=PatientModelError, low=1e-3, high=1.0, unit="m")
         level = real_scalar(level, "level", error=PatientModelError, unit="HU")
+        if path is not None and not Path(path).is_file():  # the arguments first, then the extra
+            raise PatientModelError(f"no CT to build the body from: path {str(path)!r} is not a file")
+        measure = require("skimage.measure", "ct")
         try:
             volume = load_ct(path)
         except (CarmkinError, OSError) as exc:

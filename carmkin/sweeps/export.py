@@ -177,8 +177,7 @@ def rtk_geometry(sweep, scale: float = MM, layout: str = "image"):
     per metre, default mm): source, the principal point's foot, and the detector axes of ``layout``."""
     scale = _scale(scale)
     itk, rtk = _rtk()
-    s, R, f, *_ = _frames(sweep)
-    u_dir, v_dir = rtk_detector_axes(sweep, layout)
+    sources, detectors, rows, columns = rtk_frames(sweep, scale, layout)
     geometry = rtk.ThreeDCircularProjectionGeometry.New()
 
     def point(a):
@@ -193,11 +192,19 @@ def rtk_geometry(sweep, scale: float = MM, layout: str = "image"):
             v[i] = float(a[i])
         return v
 
-    for k in range(len(s)):
-        if not geometry.AddProjection(point(s[k] * scale), point((s[k] + f * R[k, :, 2]) * scale),
-                                      vector(R[k] @ u_dir), vector(R[k] @ v_dir)):
+    for k in range(len(sources)):
+        if not geometry.AddProjection(point(sources[k]), point(detectors[k]), vector(rows[k]), vector(columns[k])):
             raise SweepError(f"RTK refused frame {k} (AddProjection returned false)")
     return geometry
+
+
+def rtk_frames(sweep, scale: float = MM, layout: str = "image") -> tuple[np.ndarray, ...]:
+    """What RTK's ``AddProjection`` takes per frame, (n, 3) each: the source and the principal point's foot on the
+    detector (world units ``scale`` per metre), the detector's row and column directions of ``layout``."""
+    scale = _scale(scale)
+    s, R, f, *_ = _frames(sweep)
+    u_dir, v_dir = rtk_detector_axes(sweep, layout)
+    return s * scale, (s + f * R[:, :, 2]) * scale, R @ u_dir, R @ v_dir
 
 
 def rtk_matrices(geometry) -> np.ndarray:
@@ -249,12 +256,7 @@ def to_rtk_stack(sweep, images: np.ndarray, layout: str = "image") -> np.ndarray
 
 
 def write_rtk_xml(sweep, path, scale: float = MM, layout: str = "image") -> None:
-    """Write the RTK geometry of ``sweep`` to an XML file (RTK's own writer)."""
-    feasible(sweep)
-    _scale(scale)
-    _, rtk = _rtk()
-    writer = rtk.ThreeDCircularProjectionGeometryXMLFileWriter.New()
-    geometry = rtk_geometry(sweep, scale, layout)  # kept alive: the writer holds a raw pointer to it
-    writer.SetFilename(str(path))
-    writer.SetObject(geometry)
-    writer.WriteFile()
+    """Write the RTK geometry of ``sweep`` to an XML file in RTK's format (:mod:`.rtk_xml`: no itk-rtk needed)."""
+    from . import rtk_xml
+
+    rtk_xml.write(path, *rtk_frames(sweep, _scale(scale), layout))

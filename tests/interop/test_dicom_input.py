@@ -303,7 +303,7 @@ def test_cli_bad_files_exit_2_with_one_line(tmp_path, capsys):
 
 def test_cli_reads_an_xa_file_without_position_when_told_one(tmp_path, capsys):
     _bad_files(tmp_path)
-    assert main(["dicom", "--read", str(tmp_path / "no_position.dcm"), "--patient", "HFS"]) == 0
+    assert main(["dicom", "--read", str(tmp_path / "no_position.dcm"), "--patient-position", "HFS"]) == 0
     assert "view from the XA positioner angles" in capsys.readouterr().out
 
 

@@ -128,8 +128,8 @@ def test_bad_detector_inputs_raise():
 @settings(max_examples=20)
 @given(cameras())
 def test_nanodrr_inverse_intrinsics_match(camera):
-    pytest.importorskip("torch")
-    intrinsics = pytest.importorskip("nanodrr.camera.intrinsics")
+    pytest.importorskip("torch", reason="nanodrr's intrinsics need torch (the drr extra)")
+    intrinsics = pytest.importorskip("nanodrr.camera.intrinsics", reason="needs nanodrr (the drr extra)")
     _, K, size, sdd = camera
     d = sim.nanodrr_detector(K, size, sdd)
     import torch
@@ -144,7 +144,7 @@ def test_nanodrr_inverse_intrinsics_match(camera):
 @settings(max_examples=10)
 @given(st.data())
 def test_killeengeo_camera_projection_matches(data):
-    kg = pytest.importorskip("killeengeo")
+    kg = pytest.importorskip("killeengeo", reason="needs DeepDRR's geometry package (pip install killeengeo)")
     system, K, _, _ = data.draw(cameras())
     T = sim.to_millimetres(system.fk(data.draw(configurations(system))))
     intrinsic, extrinsic = sim.deepdrr_camera_projection(K, T)
@@ -157,8 +157,8 @@ def test_killeengeo_camera_projection_matches(data):
 
 def test_diffdrr_perspective_projection_matches():
     """DiffDRR's own projection of points, with our pose and detector converted, lands on our pixels."""
-    torch = pytest.importorskip("torch")
-    drr_module = pytest.importorskip("diffdrr.drr")
+    torch = pytest.importorskip("torch", reason="DiffDRR needs torch (the drr extra)")
+    drr_module = pytest.importorskip("diffdrr.drr", reason="needs DiffDRR with its dependencies")
     data_module = pytest.importorskip("diffdrr.data")
     from torchio import ScalarImage
 
