@@ -15,6 +15,7 @@ skipped. `carmkin dataset info DIR` prints what a dataset folder holds. Lengths 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 
 from . import _common as common
 
@@ -50,6 +51,7 @@ def register(parser: argparse.ArgumentParser) -> None:
     gen.add_argument("--patient", choices=("parametric", "none"), default="parametric",
                      help="a parametric patient (1750 mm, 75 kg, HFS) lying on the table (default) or none")
     gen.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    common.add_json_argument(gen, "the run's summary (shards made and skipped, images, seconds)")
     prior = gen.add_argument_group("prior parameters (each prior takes some; see docs/datasets.md)")
     prior.add_argument("--views", metavar="NAMES", help="standard-views: comma-separated view names (default all)")
     prior.add_argument("--sd-deg", type=common.number(0, 45, unit="deg"), help="standard-views: SD (deg, default 2.5)")
@@ -64,6 +66,7 @@ def register(parser: argparse.ArgumentParser) -> None:
     prior.add_argument("--n-views", type=common.integer(2, 10_000), help="sweep: frames per sweep (default 50)")
     info = sub.add_parser("info", help="print what a dataset folder holds")
     info.add_argument("dir", metavar="DIR", help="a dataset folder")
+    common.add_json_argument(info, "what the folder holds")
 
 
 def _parameters(args) -> dict:
@@ -86,8 +89,11 @@ def run(args: argparse.Namespace) -> int:
     from carmkin import datasets
 
     if args.action == "info":
-        for line in datasets.info(args.dir).lines():
-            print(line)
+        contents = datasets.info(args.dir)
+        if args.json != common.STDOUT:
+            for line in contents.lines():
+                print(line)
+        common.write_json(args, dataclasses.asdict(contents))
         return 0
     from carmkin.patient import ParametricPatient
 
@@ -102,6 +108,8 @@ def run(args: argparse.Namespace) -> int:
                          args.shard_size, device, args.samples)
     summary = datasets.generate(spec, args.out, executor="local" if args.local else "ray", address=args.ray_address,
                                 num_cpus=args.num_cpus, progress=not args.no_progress)
-    print(f"dataset {summary.out}: {summary.images} images in {summary.made} shards made, {summary.skipped} already "
-          f"there; {summary.images_per_second:.1f} images/s")
+    if args.json != common.STDOUT:
+        print(f"dataset {summary.out}: {summary.images} images in {summary.made} shards made, {summary.skipped} "
+              f"already there; {summary.images_per_second:.1f} images/s")
+    common.write_json(args, {**dataclasses.asdict(summary), "images_per_second": summary.images_per_second})
     return 0

@@ -95,7 +95,7 @@ def register(parser: argparse.ArgumentParser) -> None:
     best.add_argument("--workers", type=common.integer(1, 256), default=None,
                       help="processes for the reachability of 2048 cells or more (default: the usable cores)")
     best.add_argument("--png", metavar="FILE", help="write the map figure (png, pdf, svg, ...)")
-    best.add_argument("--json", metavar="FILE", help="write the answer as JSON ('-': standard output)")
+    common.add_json_argument(best, "the answer")
     best.set_defaults(action_run=_optimal)
 
 
@@ -319,7 +319,6 @@ def _optimal(args: argparse.Namespace) -> int:
     secondary = _range(args.secondary_range_deg, "--secondary-range-deg", args.step_deg)
     weights = common.parse_numbers(args.weights, 2, "--weights")
     png = args.png and common.plot_path(args.png, "--png")
-    out = args.json if args.json == "-" else args.json and common.output_path(args.json, "--json", ("json",))
     patient = _patient(system, args)
     position = patient or args.patient_position
     line = _read_centreline(args.centreline, "--centreline", args.frame, patient, args.patient_position)
@@ -329,19 +328,14 @@ def _optimal(args: argparse.Namespace) -> int:
     m = optimal_view_map(system, line, primary, secondary, patient, [o.points for o in others], target,
                          radius=args.radius_mm / MM, weights=weights, margin=args.margin_mm / MM, position=position,
                          workers=args.workers)
-    answer = _optimal_json(system, m)
-    if out != "-":
+    if args.json != common.STDOUT:
         _print_optimal(system, m, primary, secondary, args.step_deg)
     if png:
         from carmkin.views.optimal_figure import optimal_map_figure
 
         optimal_map_figure(m).savefig(png)
         print(f"wrote {png}")
-    if out == "-":
-        print(json.dumps(answer, indent=2))
-    elif out:
-        out.write_text(json.dumps(answer, indent=2), encoding="utf-8")
-        print(f"wrote {out}")
+    common.write_json(args, _optimal_json(system, m))
     return 0 if m.best_reachable is not None else 1
 
 

@@ -108,6 +108,9 @@ ALIASES = {
     "--patient": ("dicom", "patient_position", "FFS"),
 }
 LEAVES = parsers()
+#: What the commands with required arguments need besides (parsed only: the tests stop before any work).
+REQUIRED = {"dataset generate": ["--prior", "sweep", "--n", "1", "--size", "40x30", "--out", "never-made"],
+            "dataset info": ["never-made"], "views optimal": ["--centreline", "never-read.csv"]}
 
 
 def visible_options(parser) -> dict[str, argparse.Action]:
@@ -117,7 +120,9 @@ def visible_options(parser) -> dict[str, argparse.Action]:
 @pytest.mark.parametrize("command", sorted(LEAVES))
 def test_every_option_follows_the_grammar(command):
     options = visible_options(LEAVES[command])
-    assert not REPLACED & set(options), f"carmkin {command}: {REPLACED & set(options)} replaced (docs/cli.md)"
+    # --out names a folder (metavar DIR, e.g. a dataset's shards); as a figure it was replaced by --png
+    replaced = {o for o in REPLACED & set(options) if not (o == "--out" and options[o].metavar == "DIR")}
+    assert not replaced, f"carmkin {command}: {replaced} replaced (docs/cli.md)"
     for name, action in options.items():
         if action.metavar == JOINTS_METAVAR:
             assert name.endswith("q-mm-deg"), f"carmkin {command} {name}: a configuration is --...q-mm-deg"
@@ -143,7 +148,7 @@ def test_every_command_that_computes_writes_json(command):
 def test_an_unknown_option_names_the_subcommand(command, capsys):
     head = command.split()
     required = {"ik": ["--pose=0,0,500,0,0,0"], "reproduce": ["model"],
-                "panorama shot": ["--principal-point", "400,300"]}.get(command, [])
+                "panorama shot": ["--principal-point", "400,300"], **REQUIRED}.get(command, [])
     code, out, err = run([*head, *required, "--bogus"], capsys)
     assert code == 2 and not out and "Traceback" not in err
     assert err.strip().splitlines() == [f"carmkin {command}: error: unrecognized arguments: --bogus "
@@ -155,7 +160,7 @@ def test_an_output_that_cannot_be_written_is_refused_before_any_work(command, tm
     blocker = tmp_path / "a-file"
     blocker.write_text("")
     required = {"ik": ["--pose=0,0,500,0,0,0"], "reproduce": ["all"],
-                "panorama shot": ["--principal-point", "400,300"]}.get(command, [])
+                "panorama shot": ["--principal-point", "400,300"], **REQUIRED}.get(command, [])
     code, out, err = run([*command.split(), *required, "--json", blocker / "x.json"], capsys)
     assert code == 2 and not out
     assert err.strip().splitlines() == [f"carmkin {command}: error: --json {blocker / 'x.json'}: cannot create the "
