@@ -37,15 +37,16 @@ from carmkin.errors import SweepError
 MM = 1e3
 
 
-def feasible(sweep):
+def feasible(sweep, geometry_only: bool = False):
     """``sweep`` when it is a planned :class:`~carmkin.sweeps.Sweep` that succeeded; else :class:`SweepError`: a
     failed sweep's frames include poses the machine cannot take (joints out of range, contacts), so its geometry
-    is never exported (``sweep.cut()`` plans its largest feasible arc)."""
+    is never exported (``sweep.cut()`` plans its largest feasible arc). ``geometry_only``: the frames as an
+    assumed geometry whatever the machine can do (a reconstruction study's ideal circle), never a plan to run."""
     from .plan import Sweep
 
     if not isinstance(sweep, Sweep):
         raise SweepError(f"sweep must be a carmkin.sweeps.Sweep (plan_sweep(...)), got {type(sweep).__name__}")
-    if not sweep.success:
+    if not sweep.success and not geometry_only:
         raise SweepError(f"sweep: a failed sweep is not exported ({sweep.failure}); sweep.cut() plans its largest "
                          "feasible arc")
     return sweep
@@ -61,9 +62,9 @@ def _scale(scale) -> float:
     return scale
 
 
-def _frames(sweep):
+def _frames(sweep, geometry_only: bool = False):
     """Source positions s (n, 3) m, rotations R (n, 3, 3), SDD f (m), pitch (sx, sy) m, (u0, v0) px, size."""
-    sweep = feasible(sweep)
+    sweep = feasible(sweep, geometry_only)
     carm = sweep.system.carm
     K = carm.intrinsics()
     return (sweep.poses[:, :3, 3], sweep.poses[:, :3, :3], carm.source_to_detector, carm.pixel_spacing,
@@ -152,9 +153,9 @@ def _rtk():
 RTK_LAYOUTS = ("image", "rotation")
 
 
-def rtk_detector_axes(sweep, layout: str = "image") -> tuple[np.ndarray, np.ndarray]:
+def rtk_detector_axes(sweep, layout: str = "image", geometry_only: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Unit vectors (u, v) of the RTK detector axes in our source frame for ``layout`` (:data:`RTK_LAYOUTS`)."""
-    sweep = feasible(sweep)
+    sweep = feasible(sweep, geometry_only)
     if layout == "image":
         return np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
     if layout != "rotation":
@@ -172,12 +173,12 @@ def rtk_detector_axes(sweep, layout: str = "image") -> tuple[np.ndarray, np.ndar
     return np.cross([0.0, 0.0, 1.0], v), v
 
 
-def rtk_geometry(sweep, scale: float = MM, layout: str = "image"):
+def rtk_geometry(sweep, scale: float = MM, layout: str = "image", geometry_only: bool = False):
     """An ``rtk.ThreeDCircularProjectionGeometry`` with one ``AddProjection`` per frame (world units ``scale``
     per metre, default mm): source, the principal point's foot, and the detector axes of ``layout``."""
     scale = _scale(scale)
     itk, rtk = _rtk()
-    sources, detectors, rows, columns = rtk_frames(sweep, scale, layout)
+    sources, detectors, rows, columns = rtk_frames(sweep, scale, layout, geometry_only)
     geometry = rtk.ThreeDCircularProjectionGeometry.New()
 
     def point(a):
@@ -198,12 +199,12 @@ def rtk_geometry(sweep, scale: float = MM, layout: str = "image"):
     return geometry
 
 
-def rtk_frames(sweep, scale: float = MM, layout: str = "image") -> tuple[np.ndarray, ...]:
+def rtk_frames(sweep, scale: float = MM, layout: str = "image", geometry_only: bool = False) -> tuple[np.ndarray, ...]:
     """What RTK's ``AddProjection`` takes per frame, (n, 3) each: the source and the principal point's foot on the
     detector (world units ``scale`` per metre), the detector's row and column directions of ``layout``."""
     scale = _scale(scale)
-    s, R, f, *_ = _frames(sweep)
-    u_dir, v_dir = rtk_detector_axes(sweep, layout)
+    s, R, f, *_ = _frames(sweep, geometry_only)
+    u_dir, v_dir = rtk_detector_axes(sweep, layout, geometry_only)
     return s * scale, (s + f * R[:, :, 2]) * scale, R @ u_dir, R @ v_dir
 
 
@@ -224,13 +225,13 @@ def pixel_from_detector(sweep, scale: float = MM, layout: str = "image") -> np.n
                      [u_dir[1] / (sy * scale), v_dir[1] / (sy * scale), v0], [0.0, 0.0, 1.0]])
 
 
-def rtk_projection_grid(sweep, scale: float = MM, layout: str = "image"):
+def rtk_projection_grid(sweep, scale: float = MM, layout: str = "image", geometry_only: bool = False):
     """``(origin (3,), spacing (3,), size (3,))`` of the RTK projection stack (frame k at z = k): its index
     (i, j) along (u, v) is one of our pixels — ``to_rtk_stack`` reorders our images accordingly."""
     scale = _scale(scale)
-    _, _, _, (sx, sy), (u0, v0), (cols, rows) = _frames(sweep)
+    _, _, _, (sx, sy), (u0, v0), (cols, rows) = _frames(sweep, geometry_only)
     origin, spacing, size = [], [], []
-    for d in rtk_detector_axes(sweep, layout):
+    for d in rtk_detector_axes(sweep, layout, geometry_only):
         along_x = abs(d[0]) > 0.5
         pitch, centre, count = (sx, u0, cols) if along_x else (sy, v0, rows)
         sign = d[0] if along_x else d[1]

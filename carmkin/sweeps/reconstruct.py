@@ -124,8 +124,9 @@ def forward_project(sweep, volume_image):
     """Joseph projections (itk image: columns × rows × frames) of ``volume_image`` along ``sweep`` (its
     poses in the volume's frame, mm)."""
     itk, rtk = _itk()
-    geometry = export.rtk_geometry(sweep, layout=LAYOUT)
-    origin, spacing, size = export.rtk_projection_grid(sweep, layout=LAYOUT)
+    # a simulation on an assumed geometry (a study's ideal circle may be no plan the machine can run)
+    geometry = export.rtk_geometry(sweep, layout=LAYOUT, geometry_only=True)
+    origin, spacing, size = export.rtk_projection_grid(sweep, layout=LAYOUT, geometry_only=True)
     stack = _image(size, spacing, origin)
     joseph = rtk.JosephForwardProjectionImageFilter[itk.Image[itk.F, 3], itk.Image[itk.F, 3]].New()
     joseph.SetInput(0, stack)
@@ -138,7 +139,7 @@ def forward_project(sweep, volume_image):
 def fdk(sweep, projections, volume: Volume) -> np.ndarray:
     """Parker-weighted FDK of ``projections`` with the geometry of ``sweep`` → (z, y, x) float array."""
     itk, rtk = _itk()
-    geometry = export.rtk_geometry(sweep, layout=LAYOUT)
+    geometry = export.rtk_geometry(sweep, layout=LAYOUT, geometry_only=True)  # as in forward_project
     image = itk.Image[itk.F, 3]
     parker = rtk.ParkerShortScanImageFilter[image].New()
     parker.SetInput(projections)
