@@ -30,15 +30,17 @@ def test_without_noise_the_panorama_is_exact():
     assert p.angle_errors.size == 5 and np.max(p.angle_errors) <= EXACT
 
 
-@pytest.mark.parametrize("protocol", chapter3.PROTOCOLS)
-def test_without_noise_tables_3_1_and_3_2_are_exact(protocol):
-    """§3.3.4.2's protocol too: an exact camera and operator compensate the source translation in one move
-    of the prismatic joints (linear in them), and the measured rotation is the true one."""
-    rows = chapter3.table_3_1(SYSTEM, ErrorModel.exact(), procedures=1, seed=2, guidance=EXACT_GUIDANCE,
+@pytest.mark.parametrize("protocol, preset", [(p, "siremobile-iso-c3d") for p in chapter3.PROTOCOLS]
+                         + [("chapter3", "siremobile-iso-c3d-motorized-table")])
+def test_without_noise_tables_3_1_and_3_2_are_exact(protocol, preset):
+    """§3.3.4.2's protocol too (on both presets): an exact camera and operator compensate the source
+    translation in one move of the prismatic joints (linear in them), and the measured rotation is the true one."""
+    system = carmkin.load_preset(preset)
+    rows = chapter3.table_3_1(system, ErrorModel.exact(), procedures=1, seed=2, guidance=EXACT_GUIDANCE,
                               protocol=protocol)
     (without, with_) = rows["overall"]
     assert without[2] >= 6 and without[0] <= EXACT and with_[0] <= EXACT
-    measured = chapter3.table_3_2(SYSTEM, ErrorModel.exact(), seed=2, guidance=EXACT_GUIDANCE, protocol=protocol)
+    measured = chapter3.table_3_2(system, ErrorModel.exact(), seed=2, guidance=EXACT_GUIDANCE, protocol=protocol)
     for method in "ABC":
         assert measured[method] == pytest.approx({"240 mm": 240.0, "120 mm": 120.0, "90 deg": 90.0,
                                                   "180 deg": 180.0}, abs=1e-6)
