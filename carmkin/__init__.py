@@ -47,7 +47,8 @@ __all__ = [
 #: Submodules loaded on first attribute access (``carmkin.analytic_ik.solve(...)`` after ``import carmkin``)
 #: so that importing carmkin does not pull in the QP solvers, coal or meshcat.
 _LAZY_SUBMODULES = {"model", "robot", "analytic_ik", "analytic", "qp_ik", "qp", "singularity", "studies",
-                    "imaging", "plots", "reposition", "transforms", "viz", "sweeps", "patient", "views", "world"}
+                    "imaging", "panorama", "plots", "reposition", "transforms", "viz", "sweeps", "patient", "views",
+                    "world", "datasets"}
 
 
 def _version() -> str:

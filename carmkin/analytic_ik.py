@@ -37,11 +37,10 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import math
 
 import numpy as np
 
-from carmkin.analytic import batch, singular
+from carmkin.analytic import batch
 from carmkin.analytic.closed_form import (  # noqa: F401 (the names of this module's contract)
     CASE_TOLERANCE,
     NUMERICAL_TOLERANCE,
@@ -50,9 +49,10 @@ from carmkin.analytic.closed_form import (  # noqa: F401 (the names of this modu
     TIE_TOLERANCE,
     ClosedFormIK,
 )
-from carmkin.analytic.poses import pose_batch, pose_rows
+from carmkin.analytic.poses import pose_batch
 from carmkin.analytic.results import BatchResult, BranchStatus, IKResult  # noqa: F401
 from carmkin.analytic.singular import FAMILY_TOLERANCE  # noqa: F401
+from carmkin.analytic.solve import solve_pose, solver_for  # noqa: F401 (solver_for: of this module's contract)
 from carmkin.errors import (  # noqa: F401 (defined there, raised here)
     AnalyticIKError,
     CarmkinError,
@@ -61,29 +61,7 @@ from carmkin.errors import (  # noqa: F401 (defined there, raised here)
     UnsupportedSystemError,
 )
 from carmkin.model.kinematics import check_configuration
-from carmkin.model.per_system import per_system
 from carmkin.robot.validity import require_system
-from carmkin.validation import JOINT_VALUE_LIMIT
-
-
-@per_system
-def solver_for(system) -> ClosedFormIK:
-    """The :class:`ClosedFormIK` of ``system``, built on first use and kept while the system lives
-    (:func:`carmkin.model.per_system.per_system`; nothing is written into the frozen system)."""
-    return ClosedFormIK(system)
-
-
-def _reference(q_current, n_joints: int = 6):
-    if q_current is None:
-        return (0.0,) * n_joints
-    if type(q_current) is np.ndarray and q_current.shape == (n_joints,) and q_current.dtype == np.float64:
-        ref = q_current.tolist()
-        if math.isfinite(sum(ref)) and max(map(abs, ref)) <= JOINT_VALUE_LIMIT:
-            return ref
-    ref = check_configuration(q_current, n_joints, "q_current")
-    if ref.ndim != 1:
-        raise InvalidConfigurationError(f"q_current must be a finite vector of shape ({n_joints},), got {ref.shape}")
-    return tuple(ref.tolist())
 
 
 def solve(system, T, q_current=None) -> IKResult:
@@ -96,15 +74,7 @@ def solve(system, T, q_current=None) -> IKResult:
     extra table joints.
     """
     require_system(system, UnsupportedSystemError)
-    ik = solver_for(system)
-    T, rows, correction = pose_rows(T, "T")
-    q_ref = _reference(q_current)
-    q0, q1, det_j, _ = ik.angles_and_translations(rows)
-    if ik.is_singular(det_j, q0, q1):
-        result = singular.solve(ik, T, rows, q_ref, q0, q1, det_j)
-    else:
-        result = ik.regular(T, q0, q1, det_j, q_ref)
-    result.pose_correction = correction
+    result = solve_pose(system, T, q_current)
     result._check = functools.partial(_validity, system)
     return result
 

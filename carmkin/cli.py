@@ -14,9 +14,11 @@ not apply to the system (one line on stderr naming the option); 3 an internal er
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import os
 import pkgutil
+import re
 import sys
 
 from carmkin import _version
@@ -34,6 +36,23 @@ class OneLineParser(argparse.ArgumentParser):
 
     def error(self, message: str):
         self.exit(USAGE_ERROR, f"{self.prog}: error: {_one_line(message)} (see {self.prog} --help)\n")
+
+    def parse_known_args(self, args=None, namespace=None):
+        """A subcommand's parser refuses what it does not know itself, so the usage error names the subcommand
+        (``carmkin view: error: unrecognized arguments: --bogus``), not ``carmkin``."""
+        namespace, extras = super().parse_known_args(args, namespace)
+        if extras and self.prog != "carmkin":
+            self.error(f"unrecognized arguments: {' '.join(extras)}")
+        return namespace, extras
+
+
+def plain_text(doc: str | None) -> str | None:
+    """A docstring as ``--help`` shows it: reST roles and literals (``:class:`X```, ````x````, ```x```) as plain
+    text."""
+    if doc is None:
+        return None
+    doc = re.sub(r":(?:py:)?[a-z]+:`~?([^`]+)`", r"\1", doc)
+    return re.sub(r"``([^`]+)``|`([^`]+)`", lambda m: m[1] or m[2], doc)
 
 
 def _one_line(text: object) -> str:
@@ -56,18 +75,41 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"carmkin {_version()}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=OneLineParser)
     for name, module in _command_modules():
-        command = sub.add_parser(name, help=module.HELP, description=module.__doc__,
+        command = sub.add_parser(name, help=module.HELP, description=plain_text(module.__doc__),
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
         module.register(command)
         command.set_defaults(run=module.run)
+        _name_every_parser(command)
     return parser
+
+
+def _name_every_parser(parser: argparse.ArgumentParser) -> None:
+    """``args.prog``: the full name of the (sub)command that parsed (``carmkin panorama map``), for error lines."""
+    parser.set_defaults(prog=parser.prog)
+    parser.description = plain_text(parser.description)
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for child in action.choices.values():
+                _name_every_parser(child)
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    prefix = f"carmkin {args.command}: error:"
+    name = getattr(args, "prog", f"carmkin {args.command}")
+    prefix = f"{name}: error:"
+    if not sys.stderr.isatty():  # progress bars only on a terminal: no bar frames in a redirected log
+        os.environ.setdefault("TQDM_DISABLE", "1")
     try:
-        return int(args.run(args) or 0)
+        from carmkin.commands._common import STDOUT, check_output_paths
+        from carmkin.commands._progress import Heartbeat
+
+        check_output_paths(args)  # every file the command will write, before any work
+        if getattr(args, "json", None) == STDOUT:  # the JSON alone on stdout, instead of the text report
+            args.json_stream = sys.stdout
+            with open(os.devnull, "w") as quiet, contextlib.redirect_stdout(quiet), Heartbeat(name):
+                return int(args.run(args) or 0)
+        with Heartbeat(name):  # a line on a terminal's stderr while a command without its own bar works
+            return int(args.run(args) or 0)
     except CarmkinError as exc:
         print(f"{prefix} {_one_line(exc)}", file=sys.stderr)
         return USAGE_ERROR
@@ -76,12 +118,12 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{prefix} cannot access{where}: {exc.strerror or _one_line(exc)}", file=sys.stderr)
         return USAGE_ERROR
     except KeyboardInterrupt:
-        print(f"carmkin {args.command}: interrupted", file=sys.stderr)
+        print(f"{name}: interrupted", file=sys.stderr)
         return INTERRUPTED
     except Exception as exc:  # a bug: still one line for the user, the traceback on request
         if os.environ.get("CARMKIN_DEBUG"):
             raise
-        print(f"carmkin {args.command}: internal error: {type(exc).__name__}: {_one_line(exc)} "
+        print(f"{name}: internal error: {type(exc).__name__}: {_one_line(exc)} "
               "(set CARMKIN_DEBUG=1 for the traceback and please report it)", file=sys.stderr)
         return INTERNAL_ERROR
 

@@ -147,7 +147,7 @@ class ImagingError(CarmkinError):
     """Bad input to the imaging geometry (shape, non-finite value, point behind the source, ...)."""
 
 
-# --- carmkin.imaging.panorama --------------------------------------------------------------------
+# --- carmkin.panorama ----------------------------------------------------------------------------
 
 
 class PanoramaError(CarmkinError):
@@ -286,3 +286,30 @@ class PatientModelError(CarmkinError):
 
 class ViewError(CarmkinError):
     """A view is ill-defined (angles, target, direction, segment, distance, roll) or a view name is unknown."""
+
+
+# --- carmkin.views.anatomy / metrics / optimal -----------------------------------------------------------
+
+
+class AnatomyError(ViewError):
+    """Anatomy given to the views is ill-defined (base of the centreline, plane and placement errors)."""
+
+
+class CentrelineError(AnatomyError):
+    """A vessel centreline or its radii are unusable: fewer than 2 points, NaN, repeated points (a segment of
+    zero length), negative radii, or a size no vessel has (units)."""
+
+
+class PlaneError(AnatomyError):
+    """A plane (valve annulus) cannot be fitted: fewer than 3 points, NaN, collinear or coincident points."""
+
+
+class AnatomyPlacementError(AnatomyError):
+    """The anatomy lies outside the CT it came from or outside the patient it belongs to."""
+
+
+# --- carmkin.datasets ----------------------------------------------------------------------------
+
+
+class DatasetError(CarmkinError):
+    """A dataset request is ill-defined (prior, count, size, output folder) or a prior cannot be met."""

@@ -19,7 +19,8 @@ EXTRAS = {
     "dicom": "pydicom",
     "drr": "torch, nanodrr and nibabel",
     "cbct": "itk-rtk (itk with RTK's CPU filters)",
-    "ct": "nibabel and scikit-image (a patient body from a CT)",
+    "ct": "nibabel and scikit-image (a patient body or a vessel centreline from a CT)",
+    "datasets": "pyarrow (Parquet shards) and Ray (scale-out); rendering also needs the drr extra",
 }
 
 

@@ -209,6 +209,12 @@ def pose_error(Ta, Tb):
     return (float(dp), angle) if np.ndim(dp) == 0 else (dp, angle)
 
 
+def pose_residual(T, T_target) -> float:
+    """max(position error (m), rotation angle (rad)) between two rigid poses (4, 4) (:func:`pose_error`);
+    a non-rigid one raises :class:`~carmkin.errors.InvalidPoseError` naming it (``T`` or ``T_target``)."""
+    return max(pose_error(check_rigid_transform(T, "T"), check_rigid_transform(T_target, "T_target")))
+
+
 def segment_box_interval(p0, d, center, size, t_min: float = 0.0, t_max: float = 1.0):
     """``(t_enter, t_exit)`` of the part of ``p0 + t d`` (t in [t_min, t_max]) inside the axis-aligned box of
     ``center`` and full ``size`` (slab test; same units as the points), or ``None`` when it misses the box.

@@ -90,6 +90,25 @@ def real_array(
     return array
 
 
+def plain_floats(value, n: int, limit: float = MAGNITUDE_LIMIT) -> list[float] | None:
+    """The ``n`` values of ``value`` as a list of Python floats when it is plainly valid — a float64 array
+    of shape (n,), or a list or tuple of ``n`` Python floats, every value finite and within ``limit`` — and
+    None for anything else (the caller then takes its full check, :func:`real_array`, which says what is
+    wrong). The scalar fast paths of FK and IK: ~10x cheaper than building a checked array."""
+    if type(value) is np.ndarray:
+        if value.shape != (n,) or value.dtype != np.float64:
+            return None
+        values = value.tolist()
+    elif type(value) in (list, tuple) and len(value) == n and all(type(v) is float for v in value):
+        values = list(value)
+    else:
+        return None
+    # a NaN or inf makes the sum non-finite; a sum that overflows has a value beyond any limit
+    if not (values and math.isfinite(sum(values)) and max(map(abs, values)) <= limit):
+        return None
+    return values
+
+
 def real_scalar(
     value,
     name: str,
@@ -104,8 +123,31 @@ def real_scalar(
     number = float(real_array(value, name, (), error=error, limit=limit, unit=unit))
     if (low is not None and number < low) or (high is not None and number > high):
         bounds = f"[{'-inf' if low is None else f'{low:g}'}, {'inf' if high is None else f'{high:g}'}]"
-        raise error(f"{name} must be within {bounds}{f' {unit}' if unit else ''}, got {number:g}")
+        raise error(f"{name} must be within {bounds}{f' {unit}' if unit else ''}, got {number:g}"
+                    f"{unit_slip(number, low, high, unit)}")
     return number
+
+
+#: Units a value is often given in by mistake, for each unit the toolkit speaks: ``(unit given, factor to the
+#: expected unit)``. Used by :func:`unit_slip` to name the likely slip of an implausible length or angle.
+UNIT_SLIPS = {
+    "m": (("mm", 1e-3), ("cm", 1e-2)),
+    "mm": (("m", 1e3), ("cm", 10.0)),
+    "rad": (("degrees", math.pi / 180.0),),
+    "deg": (("radians", 180.0 / math.pi),),
+}
+
+
+def unit_slip(number: float, low: float | None, high: float | None, unit: str) -> str:
+    """``": given in mm? 1750 mm = 1.75 m"`` when ``number``, read in another unit of :data:`UNIT_SLIPS`, lies
+    within [``low``, ``high``] (both bounds needed: a one-sided bound cannot say which slip it was); else ``""``.
+    The hint for an error message; the value itself is refused either way, never converted."""
+    if low is None or high is None or not math.isfinite(number):
+        return ""
+    for other, factor in UNIT_SLIPS.get(unit.strip(), ()):
+        if low <= number * factor <= high:
+            return f": given in {other}? {number:g} {other} = {number * factor:.4g} {unit.strip()}"
+    return ""
 
 
 # --- The kinds of outside geometry: one way in for each -------------------------------------------------

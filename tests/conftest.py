@@ -1,7 +1,11 @@
-"""Test configuration: hypothesis profiles.
+"""Test configuration: hypothesis profiles and the ``slow`` marker.
 
 "ci" (default) draws 200 examples per property from a fixed seed, so a CI run is reproducible; "explore"
 draws 1000 fresh random examples (HYPOTHESIS_PROFILE=explore) and "dev" 30 (quick runs).
+
+``slow``: the executed notebooks (``--nbmake``), the tests of :data:`SLOW` and every test marked
+``@pytest.mark.slow``; a contributor's quick run leaves them out: ``python -m pytest -m "not slow"``
+(README, "Run the tests"). CI runs everything.
 """
 
 import os
@@ -17,3 +21,33 @@ settings.register_profile("ci", max_examples=200, deadline=None, derandomize=Tru
 settings.register_profile("explore", max_examples=1000, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 settings.register_profile("dev", max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
+
+
+#: Tests (node ids under tests/, or a prefix of them: a whole module) that are ``slow``: every test over 5 s in a
+#: full run on 2 shared cores (``python -m pytest --durations=80``, 2026-11-27: 546 s in all, these ~330 s).
+SLOW = (
+    "views/test_maps.py::",
+    "views/test_plan_view.py::test_every_view_of_a_collision_free_configuration_is_planned",
+    "test_singularity.py::test_pinocchio_det_equals_eq_4_7",
+    "test_singularity.py::test_regular_configurations_have_rank_6",
+    "test_singularity.py::test_distance_is_the_joint_move_that_reaches_the_set",
+    "model/test_kinematics.py::test_expanded_closed_form_equals_the_dh_product_and_pinocchio",
+    "reposition/test_pose_degenerate.py::test_acceptance_degenerate_boards_right_or_refused",
+)
+
+
+def pytest_collection_modifyitems(config, items):
+    import pytest
+
+    tests = Path(__file__).parent
+    for item in items:
+        path = Path(str(item.fspath))
+        if path.suffix == ".ipynb":  # an executed notebook (--nbmake)
+            item.add_marker(pytest.mark.slow)
+            continue
+        try:
+            node = path.relative_to(tests).as_posix() + "::" + item.nodeid.partition("::")[2]
+        except ValueError:
+            continue
+        if node.startswith(SLOW):
+            item.add_marker(pytest.mark.slow)

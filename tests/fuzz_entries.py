@@ -14,7 +14,7 @@ from fuzz_engine import Case, maybe_junk
 
 import carmkin
 from carmkin import imaging, transforms, validation
-from carmkin.imaging import panorama
+from carmkin.panorama import planner as panorama
 from carmkin.interop import simulators as sim
 
 PRESET = carmkin.load_preset("siremobile-iso-c3d")
@@ -294,6 +294,40 @@ def deepdrr_round_trip(rng):
     return maybe_junk(rng, Case(sim.deepdrr_camera_projection, (K, T), check=check), ("K", "T_mm"))
 
 
+def xvr_round_trip(rng):
+    T = g.pose(rng, scale=float(rng.choice([1.0, 1000.0])))
+    orientation = ["AP", None][int(rng.integers(0, 2))]
+    iso = rng.uniform(-200, 200, 3)
+
+    def check(r):
+        return g.close(sim.from_xvr_pose(*r, orientation, iso), T, atol=1e-9 * max(1.0, float(np.abs(T).max())))
+    return maybe_junk(rng, Case(sim.xvr_pose, (T, orientation, iso), check=check), ("T_mm", "orientation", "isocenter_mm"))
+
+
+def flashdrr_view(rng):
+    T = g.pose(rng, scale=float(rng.choice([1.0, 1000.0])))
+    return maybe_junk(rng, Case(sim.flashdrr_view_matrix, (T,),
+                                check=lambda M: g.close(sim.from_flashdrr_view_matrix(M), T, atol=1e-9)), ("T_mm",))
+
+
+def flashdrr_carm(rng):
+    sid, ap, lat, si = rng.uniform(1, 2000), rng.uniform(-89, 89), rng.uniform(-89, 89), rng.uniform(-500, 500)
+    centre = rng.uniform(-300, 300, 3)
+
+    def check(T):
+        back = sim.flashdrr_carm_parameters(T, centre)
+        return g.close(np.array(back), np.array([sid, ap, lat, si]), atol=1e-6 * max(1.0, sid))
+    return maybe_junk(rng, Case(sim.flashdrr_carm_pose, (sid, ap, lat, centre, si), check=check),
+                      ("sid_mm", "ap_deg", "lat_deg", "center_ras_mm", "table_si_mm"))
+
+
+def flashdrr_fov(rng):
+    fov, size = rng.uniform(1, 120), (int(rng.integers(2, 3000)), int(rng.integers(2, 3000)))
+    K = sim.intrinsics_from_flashdrr(fov, size)
+    return maybe_junk(rng, Case(sim.flashdrr_fov_deg, (K, size), check=lambda r: abs(r - fov) <= 1e-9 * fov),
+                      ("K", "size"))
+
+
 def millimetres(rng):
     T = g.pose(rng)
     return maybe_junk(rng, Case(sim.to_millimetres, (T,), check=lambda r: g.close(sim.to_metres(r), T, atol=1e-12)),
@@ -355,4 +389,6 @@ ENTRIES = {
     "simulators.deepdrr_camera_projection": (deepdrr_round_trip, 2),
     "simulators.to_millimetres": (millimetres, 1), "simulators.diffdrr_pose": (diffdrr_pose, 1),
     "panorama.direction_from_pixels": (direction_from_pixels, 1), "panorama.rotation_for": (rotation_for, 1),
+    "simulators.xvr_pose": (xvr_round_trip, 2), "simulators.flashdrr_view_matrix": (flashdrr_view, 1),
+    "simulators.flashdrr_carm_pose": (flashdrr_carm, 2), "simulators.flashdrr_fov_deg": (flashdrr_fov, 1),
 }

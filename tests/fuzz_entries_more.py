@@ -126,7 +126,7 @@ SHOT_PLANNER = None
 
 def panorama_shot(rng):
     global SHOT_PLANNER
-    from carmkin.imaging.panorama import PanoramaPlanner
+    from carmkin.panorama import PanoramaPlanner
 
     SHOT_PLANNER = SHOT_PLANNER or PanoramaPlanner(PRESET)
     p = SHOT_PLANNER
@@ -141,7 +141,7 @@ def panorama_shot(rng):
 
 
 def perturb(rng):
-    from carmkin.imaging.phantom import perturb as fn
+    from carmkin.panorama.phantom import perturb as fn
 
     T = g.pose(rng)
     zero = rng.random() < 0.3
@@ -232,9 +232,29 @@ def plan_a_view(rng):
                       ("system", "view"))
 
 
+def sample_some_poses(rng):
+    from carmkin import datasets
+
+    prior = ["standard-views", "joint-uniform"][int(rng.integers(0, 2))]
+    n, seed = int(rng.integers(1, 20)), int(rng.integers(0, 1000))
+    system = [PRESET, MOTORIZED][int(rng.integers(0, 2))]
+    kwargs = {"views": ["ap", "lao-30"], "sd_deg": float(rng.uniform(0, 5))} if prior == "standard-views" else {}
+
+    def check(s):
+        return (s.q.shape == (n, system.nq) and bool(np.all(s.clearance_m >= datasets.DEFAULT_MARGIN))
+                and bool(np.all((s.q >= system.lower - 1e-9) & (s.q <= system.upper + 1e-9))))
+    case = Case(datasets.sample_poses, (system, prior, n, seed), kwargs, check=check)
+    if prior == "standard-views" and rng.random() < 0.15:  # junk prior parameters
+        choices = {"views": [5, "ap", ["nope"], [1]], "sd_deg": [-1.0, "2", np.nan, 1e9]}
+        key = ("views", "sd_deg")[int(rng.integers(0, 2))]
+        bad = {key: choices[key][int(rng.integers(0, 4))]}
+        return Case(datasets.sample_poses, case.args, {**kwargs, key: bad[key]}, None, key)
+    return maybe_junk(rng, case, ("system", "prior", "n", "seed"))
+
+
 ENTRIES = {
     "views.View.from_angles": (view_from_angles, 1), "views.View.from_pose": (view_from_pose, 1),
-    "views.plan_view": (plan_a_view, 0.2),
+    "views.plan_view": (plan_a_view, 0.2), "datasets.sample_poses": (sample_some_poses, 0.2),
     "imaging.homography_between": (homography_between, 2), "imaging.dehomogenize": (dehomogenize, 1),
     "imaging.image_border": (image_border, 1), "imaging.measure_distance": (measure_distance, 1),
     "imaging.projection_matrix": (projection_of_configuration, 1),

@@ -10,7 +10,7 @@ import pytest
 import carmkin
 from carmkin import transforms
 from carmkin.errors import CarmkinError, InvalidPoseError, PanoramaError, PresetError
-from carmkin.imaging.panorama import PanoramaPlanner
+from carmkin.panorama import PanoramaPlanner
 from carmkin.presets import preset_provenance, system_from_dict
 
 PRESET = carmkin.load_preset("siremobile-iso-c3d")

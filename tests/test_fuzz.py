@@ -269,7 +269,7 @@ def test_imaging_project(K, T, X):
 @fuzz(20)
 @given(length=st.one_of(junk_scalar, st.floats(-1, 2)), overlap=st.one_of(junk_scalar, st.floats(-1, 2)))
 def test_panorama_plan(length, overlap):
-    from carmkin.imaging.panorama import PanoramaPlanner
+    from carmkin.panorama import PanoramaPlanner
 
     call(PanoramaPlanner(PRESET).plan, length, overlap=overlap)
 

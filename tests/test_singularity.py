@@ -252,7 +252,7 @@ def test_det_map_equals_pinocchio_on_grid_points():
 # --- CLI -----------------------------------------------------------------------------------------------------
 def test_cli_writes_the_maps(tmp_path, capsys):
     out = tmp_path / "maps.png"
-    assert main(["singularity", "--plot", str(out), "--grid", "9", "--pair", "wigwag,horizontal",
+    assert main(["singularity", "--png", str(out), "--grid", "9", "--pair", "wigwag,horizontal",
                  "--q-mm-deg", "0,200,0,100,90,0"]) == 0
     data = out.read_bytes()
     assert data.startswith(b"\x89PNG\r\n\x1a\n") and len(data) > 1000
@@ -263,7 +263,7 @@ def test_cli_writes_the_maps(tmp_path, capsys):
 def test_cli_check_and_errors(capsys):
     assert main(["singularity", "--check", "20", "--random-setups", "3"]) == 0
     assert "PASS" in capsys.readouterr().out
-    assert main(["singularity", "--pair", "wigwag,elbow", "--plot", "unused.png"]) == 2
+    assert main(["singularity", "--pair", "wigwag,elbow", "--png", "unused.png"]) == 2
     assert main(["singularity", "--q-mm-deg", "1,2,3"]) == 2
 
 

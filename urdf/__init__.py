@@ -1,1 +1,1 @@
-"""Package data: ``carm_table.urdf.xacro``, the parametric description of the C-arm + table (see carmkin.robot.urdf)."""
+"""Package data: ``carm_table.urdf.xacro``, the parametric description of the C-arm + table (see carmkin.model.urdf)."""

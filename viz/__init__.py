@@ -6,7 +6,13 @@
 - :func:`screenshot`: render a page to PNG with headless Chromium.
 """
 
+import warnings
+
 from carmkin.errors import BrowserNotFoundError, ServerError, VisualizationError
+
+with warnings.catch_warnings():  # meshcat 0.3.2 imports pyzmq's deprecated zmq.eventloop.ioloop: not the user's concern
+    warnings.filterwarnings("ignore", message="zmq.eventloop.ioloop is deprecated", category=DeprecationWarning)
+    import meshcat  # noqa: F401 (imported once here, quietly; the modules below find it loaded)
 
 from .distances import DistanceChecker, PairDistance
 from .screenshot import find_chromium, screenshot

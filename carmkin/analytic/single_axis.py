@@ -18,7 +18,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from carmkin import analytic_ik
+from carmkin.analytic.results import IKResult
+from carmkin.analytic.solve import solve_pose
 from carmkin.errors import (
     InvalidConfigurationError,
     TableIKError,  # noqa: F401 (defined there, raised here)
@@ -43,7 +44,7 @@ class SingleAxisResult:
 
     solutions: np.ndarray
     chosen: int
-    ik: analytic_ik.IKResult
+    ik: IKResult
     equivalent: CArmSystem
     T_equivalent_table: np.ndarray
 
@@ -113,7 +114,7 @@ def solve_single_axis(system: CArmSystem, T, active: str, q_held, q_current=None
     q_held = np.asarray(q_held, dtype=float)
     reference = q_held if q_current is None else check_configuration(q_current, system.nq, "q_current")
     ref6 = np.concatenate(([reference[index]], reference[-5:]))
-    ik = analytic_ik.solve(system6, T_eq_table @ T, q_current=ref6)
+    ik = solve_pose(system6, T_eq_table @ T, q_current=ref6)
     solutions = np.tile(q_held, (2, 1))
     solutions[:, index] = ik.solutions[:, 0]
     solutions[:, -5:] = ik.solutions[:, 1:]

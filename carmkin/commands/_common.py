@@ -29,6 +29,7 @@ from carmkin.errors import (  # noqa: F401 (defined there, raised here)
 from carmkin.model.system import CArmSystem
 from carmkin.presets import list_presets, load_preset
 from carmkin.transforms import check_rigid_transform, nearest_rigid
+from carmkin.validation import unit_slip
 
 DEFAULT_PRESET = "siremobile-iso-c3d"
 #: Factors from SI to the command line's units: m -> mm, rad -> degrees.
@@ -72,12 +73,85 @@ JOINTS_FLAG = "--q-mm-deg"
 
 class _RenamedOption(argparse.Action):
     """An option's former name, hidden from ``--help`` and kept for one release: stores its value where the
-    new name does and says so in one line on stderr."""
+    new name does and says so in one line on stderr (``new_name``: the option's name now)."""
+
+    def __init__(self, *args, new_name: str = JOINTS_FLAG, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.new_name = new_name
 
     def __call__(self, parser, namespace, values, option_string=None):
-        print(f"note: {option_string} is now called {JOINTS_FLAG}; the old name will be removed in the next release",
+        print(f"note: {option_string} is now called {self.new_name}; the old name will be removed in the next release",
               file=sys.stderr)
         setattr(namespace, self.dest, values)
+
+
+def add_alias(parser: argparse.ArgumentParser, old: str, new: str, dest: str, **kwargs) -> None:
+    """``old``: a hidden former name of option ``new`` (same ``dest``; a note on stderr when used). ``kwargs``:
+    what ``new`` was declared with that parsing needs (``type``, ``nargs``, ``metavar``...)."""
+    parser.add_argument(old, dest=dest, action=_RenamedOption, new_name=new, help=argparse.SUPPRESS, **kwargs)
+
+
+# --- the flag grammar (docs/cli.md): figures and JSON ---------------------------------------------------------
+#: argparse dests whose value is a file a command writes: checked (folder created, not a folder) before the work
+#: starts, by :func:`check_output_paths` (``carmkin.cli.main`` calls it). An output *folder* (``--out DIR``) is
+#: the command's to check.
+OUTPUT_DESTS = ("json", "png", "html", "output", "rtk_xml", "astra", "tigre", "write_xa", "write_enhanced")
+#: ``--json -``: the JSON goes to stdout instead of the text report (notes and errors stay on stderr).
+STDOUT = "-"
+
+
+def add_json_argument(parser: argparse.ArgumentParser, what: str = "the results") -> None:
+    """``--json [FILE]``: write ``what`` as JSON to FILE; ``-`` (or the flag alone) prints it on stdout instead of
+    the text report."""
+    parser.add_argument("--json", metavar="FILE", nargs="?", const=STDOUT,
+                        help=f"write {what} as JSON to FILE (- or no FILE: on stdout, instead of the text report)")
+
+
+def add_png_argument(parser: argparse.ArgumentParser, what: str, old_names: tuple[str, ...] = ()) -> None:
+    """``--png FILE``: a matplotlib figure of ``what`` (any format matplotlib writes, by the extension);
+    ``old_names``: hidden former names (``--plot``, ``--out``)."""
+    parser.add_argument("--png", metavar="FILE", help=f"write {what} as a figure (.png; .pdf, .svg... also work)")
+    for old in old_names:
+        add_alias(parser, old, "--png", "png", metavar="FILE")
+
+
+def check_output_paths(args: argparse.Namespace) -> None:
+    """Every output path of ``args`` (:data:`OUTPUT_DESTS`) ready to be written before any work: its folder
+    created (a note says so) or :class:`UsageError` naming the option. ``--json -`` is stdout."""
+    for dest in OUTPUT_DESTS:
+        value = getattr(args, dest, None)
+        if isinstance(value, (str, Path)) and str(value) != STDOUT:
+            suffixes = {"json": ("json",), "html": ("html", "htm")}.get(dest)
+            if dest == "png":
+                suffixes = plot_formats()
+            output_path(str(value), "--" + dest.replace("_", "-"), suffixes)
+
+
+def _jsonable(value):
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, Path):
+        return str(value)
+    return float(value)  # a number-like value (a TypeError names what cannot be written)
+
+
+def write_json(args: argparse.Namespace, data: dict) -> None:
+    """``data`` (numbers in mm/degrees, keys with their unit) to ``--json``'s file, or stdout for ``-``
+    (``carmkin.cli.main`` silences the text report then). Nothing without ``--json``."""
+    target = getattr(args, "json", None)
+    if target is None:
+        return
+    text = json.dumps(data, indent=2, default=_jsonable, allow_nan=True)
+    if str(target) == STDOUT:
+        stream = getattr(args, "json_stream", None) or sys.stdout
+        stream.write(text + "\n")
+        stream.flush()
+        return
+    path = output_path(str(target), "--json", ("json",))
+    path.write_text(text + "\n", encoding="utf-8")
+    print(f"wrote {path}")
 
 
 def add_joints_argument(parser: argparse.ArgumentParser, what: str = "configuration",
@@ -91,7 +165,7 @@ def add_joints_argument(parser: argparse.ArgumentParser, what: str = "configurat
                         f"joints, comma-separated (write {JOINTS_FLAG}=-5,... when the first is negative; default: "
                         f"{default})")
     for old in old_names:
-        parser.add_argument(old, dest="q_mm_deg", metavar=JOINTS_METAVAR, action=_RenamedOption, help=argparse.SUPPRESS)
+        add_alias(parser, old, JOINTS_FLAG, "q_mm_deg", metavar=JOINTS_METAVAR)
 
 
 def joint_units(system: CArmSystem) -> tuple[str, ...]:
@@ -288,7 +362,7 @@ def number(minimum: float | None = None, maximum: float | None = None, open_mini
         if not math.isfinite(value) or too_low or too_high:
             raise argparse.ArgumentTypeError(f"expected a finite number "
                                              f"{_bounds(minimum, maximum, open_minimum, open_maximum)}{_unit(unit)}, "
-                                             f"got {text}")
+                                             f"got {text}{unit_slip(value, minimum, maximum, unit)}")
         return value
     parse.__name__ = "number"
     return parse
@@ -315,6 +389,10 @@ def output_path(path: str, option: str, suffixes: tuple[str, ...] | None = None)
         raise UsageError(f"{option} {path}: is a folder, expected a file name")
     if target.parent.is_dir():
         return target
+    blocker = next((p for p in (target.parent, *target.parent.parents) if p.exists()), None)
+    if blocker is not None and not blocker.is_dir():
+        raise UsageError(f"{option} {path}: cannot create the folder {str(target.parent)!r} "
+                         f"({str(blocker)!r} is a file)")
     try:
         target.parent.mkdir(parents=True)
     except OSError as exc:

@@ -1,13 +1,13 @@
 """DICOM XA geometry of a configuration, synthetic datasets, and the moves that give a DICOM image's view.
 
 Without --read: prints, for --q-mm-deg, the patient-based XA Positioner Primary/Secondary Angle (LAO+/RAO−,
-CRA+/CAU−) for --patient, the Enhanced XA Isocenter Reference System (positioner and table angles in deg,
+CRA+/CAU−) for --patient-position, the Enhanced XA Isocenter Reference System (positioner and table angles in deg,
 table position to isocentre in mm) and the Table Top Vertical/Longitudinal/Lateral Position (mm; in DICOM's
 terms "longitudinal" is across the table and "lateral" along it, seen by an operator beside the table).
 --write-xa / --write-enhanced FILE write synthetic datasets (geometry only). --read FILE reads a dataset's
 geometry and prints the joint (and table) moves from --q-mm-deg that reproduce its view, through the QP IK;
 XA datasets need --isocenter-mm, the point the beam passed through (table frame), and a Patient Position:
-the dataset's, or --patient where the dataset has none (never assumed). --positioner-convention names the
+the dataset's, or --patient-position where the dataset has none (never assumed). --positioner-convention names the
 reading of the signs of the Enhanced XA positioner angles Ap2/Ap3 (beam: the detector tilts to +Z for
 Ap2 > 0, the default; literal: the source does; see docs/interop.md). A file that cannot be read, or whose
 geometry is missing or outside the standard's ranges, exits 2 with one line naming the attribute and its
@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from ._common import add_preset_argument, system_from_args
+from ._common import add_alias, add_json_argument, add_preset_argument, joints_json, system_from_args, write_json
 from ._interop import add_configuration_argument, configuration, describe, millimetres
 
 HELP = "XA / Enhanced XA geometry of a configuration, synthetic datasets, moves to a DICOM image's view"
@@ -30,10 +30,14 @@ HELP = "XA / Enhanced XA geometry of a configuration, synthetic datasets, moves 
 def register(parser: argparse.ArgumentParser) -> None:
     add_preset_argument(parser)
     add_configuration_argument(parser, what="configuration (the current one with --read)")
-    parser.add_argument("--patient", metavar="CODE",
+    parser.add_argument("--patient-position", metavar="CODE",
                         help="DICOM patient position (default HFS; with --read only used where the dataset has none)")
-    parser.add_argument("--positioner-convention", choices=("beam", "literal"), default="beam",
-                        help="reading of the Enhanced XA Ap2/Ap3 signs (default beam)")
+    add_alias(parser, "--patient", "--patient-position", "patient_position", metavar="CODE")
+    add_json_argument(parser, "the angles, the isocenter geometry and the table position (or, with --read, the moves)")
+    parser.add_argument("--positioner-convention", choices=("beam", "literal", "literal-ap2", "literal-ap3",
+                                                             "pyskindose"), default="beam",
+                        help="reading of the Enhanced XA Ap2/Ap3 signs: beam (default), literal (both), or literal "
+                             "for one angle only (literal-ap2 = pyskindose, literal-ap3)")
     parser.add_argument("--patient-origin-mm", metavar="X,Y,Z", default="0,0,0",
                         help="patient frame origin in the table frame (mm, default 0,0,0)")
     parser.add_argument("--write-xa", metavar="FILE", help="write a synthetic XA dataset of the configuration")
@@ -54,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
 
         return _read(system, q, args, origin, dicom_io.read_file(args.read))
     print(f"preset {system.name}: q = {describe(system, q)}")
-    code = args.patient or "HFS"
+    code = args.patient_position or "HFS"
     patient = dicom.patient_pose(code, origin)
     primary, secondary, rotation = dicom.xa_angles(system.fk(q), patient, convention=args.positioner_convention)
     print(f"XA ({code.upper()}): Positioner Primary Angle {primary:.4f}° ({'LAO' if primary >= 0 else 'RAO'}), "
@@ -65,7 +69,8 @@ def run(args: argparse.Namespace) -> int:
           + ", ".join(f"{v:.3f}" for v in g.table_position_mm)
           + f" mm; table rotation {g.table_rotation_deg:.4f}°, head tilt {g.table_head_tilt_deg:.4f}°, "
           f"cradle tilt {g.table_cradle_tilt_deg:.4f}°; source to isocentre {g.source_to_isocenter_mm:.3f} mm")
-    for name, value in dicom.table_position(system, q).items():
+    table = dicom.table_position(system, q)
+    for name, value in table.items():
         print(f"{name}: {value:.3f} mm")
     if args.write_xa or args.write_enhanced:
         from carmkin.interop import dicom_io
@@ -77,24 +82,33 @@ def run(args: argparse.Namespace) -> int:
             ds = dicom_io.write_enhanced_xa(system, q, patient_position=code, convention=args.positioner_convention)
             ds.save_as(args.write_enhanced, enforce_file_format=True)
             print(f"wrote {args.write_enhanced}")
+    write_json(args, {"preset": system.name, "q": joints_json(system, q), "patient_position": code.upper(),
+                      "primary_deg": primary, "secondary_deg": secondary, "detector_rotation_deg": rotation,
+                      "isocenter_reference_system": {k: v for k, v in vars(g).items() if not k.startswith("_")},
+                      "table_position_mm": {k: float(v) for k, v in table.items()}})
     return 0
 
 
 def _read(system, q, args, origin, ds) -> int:
-    from carmkin.interop import dicom_io
+    from carmkin.reposition.dicom import moves_for_dataset
 
-    view, result = dicom_io.moves_for_dataset(system, ds, q_current=q,
-                                              isocenter=millimetres(args.isocenter_mm, "--isocenter-mm"),
-                                              patient_origin=origin, patient_position=args.patient,
-                                              convention=args.positioner_convention)
+    view, result = moves_for_dataset(system, ds, q_current=q,
+                                     isocenter=millimetres(args.isocenter_mm, "--isocenter-mm"),
+                                     patient_origin=origin, patient_position=args.patient_position,
+                                     convention=args.positioner_convention)
     # Nothing is printed before the file and its geometry are read: a bad file is one line on stderr, exit 2.
     print(f"preset {system.name}: q = {describe(system, q)}")
     print(f"view from the {view.source}: source at {np.round(view.pose[:3, 3] * 1e3, 3)} mm (table frame), "
           f"beam direction {np.round(view.pose[:3, 2], 6)}")
+    out = {"preset": system.name, "q_current": joints_json(system, q), "view_source": str(view.source),
+           "source_mm": view.pose[:3, 3] * 1e3, "beam_direction": view.pose[:3, 2], "success": bool(result.success)}
     if not result.success:
         print(f"no valid configuration reaches this view: {result.reason}")
+        write_json(args, {**out, "reason": str(result.reason)})
         return 1
-    print(f"configuration ({result.path}): {describe(system, result.q)}")
+    write_json(args, {**out, "path": getattr(result.path, "value", str(result.path)), "q": joints_json(system, result.q),
+                      "moves": joints_json(system, result.q - q)})
+    print(f"configuration ({getattr(result.path, 'value', result.path)}): {describe(system, result.q)}")
     moves = result.q - q
     print("moves: " + ", ".join(f"{n} {m * 1e3 if p else math.degrees(m):+.3f}{'mm' if p else '°'}"
                                 for n, m, p in zip(system.joint_names, moves, system.prismatic)))

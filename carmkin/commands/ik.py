@@ -12,7 +12,7 @@ The pose is the X-ray source frame (origin at the source centre, Z = principal a
 --q-mm-deg (one value per joint, mm for prismatic and degrees for revolute joints) is the current
 configuration used to choose between the two solutions (§4.4.2; default: zero configuration). Prints both
 solutions in mm/degrees with their status and their §4.4.3 validity (collisions, table in the cone), and
-the chosen one (--json for machines). The closed form is the paper's 6-joint chain: on a preset with a
+the chosen one (--json [FILE] for machines). The closed form is the paper's 6-joint chain: on a preset with a
 motorized table the command refuses and names the alternative (carmkin.qp_ik.solve).
 
 Exit code 0 when the chosen solution is within the joint ranges, 1 when no solution is, 2 on bad input,
@@ -22,12 +22,12 @@ an unsolvable singular pose or a system the closed form does not cover.
 from __future__ import annotations
 
 import argparse
-import json
 
 from ._common import (
     JOINTS_FLAG,
     MM_PER_M,
     add_joints_argument,
+    add_json_argument,
     add_preset_argument,
     format_joints,
     joint_units,
@@ -39,6 +39,7 @@ from ._common import (
     require_six_joints,
     system_from_args,
     to_cli_units,
+    write_json,
 )
 
 HELP = "closed-form IK of an X-ray source pose (mm, degrees): both solutions and the chosen one"
@@ -52,8 +53,7 @@ def register(parser: argparse.ArgumentParser) -> None:
     pose.add_argument("--pose-file", metavar="FILE", help="pose as JSON or a 4x4 text matrix (see above)")
     add_joints_argument(parser, "the current configuration, for the choice between the solutions", "zero",
                         old_names=("--current",))
-    parser.add_argument("--json", action="store_true",
-                        help="print JSON (joints in mm and degrees; residual in m and rad)")
+    add_json_argument(parser, "both branches (joints in mm and degrees; residual in m and rad)")
 
 
 def validity_summary(system, q) -> dict:
@@ -102,10 +102,6 @@ def run(args: argparse.Namespace) -> int:
     q_current = None if args.q_mm_deg is None else parse_joints(args.q_mm_deg, system, JOINTS_FLAG)
     result = solve(system, T, q_current)
     branches = [_branch_dict(system, s, b) for s, b in zip(result.solutions, result.branches)]
-    if args.json:
-        print(json.dumps({"preset": system.name, "chosen": result.chosen, "valid": bool(result.valid),
-                          "det_j": result.det_j, "branches": branches}, indent=2))
-        return 0 if result.valid else 1
     print(f"preset {system.name}; det J = {result.det_j:.4g}; branches (* = chosen):")
     for k, (solution, b) in enumerate(zip(result.solutions, branches)):
         mark = "*" if k == result.chosen else " "
@@ -119,4 +115,6 @@ def run(args: argparse.Namespace) -> int:
     chosen = branches[result.chosen]["validity"]
     print(f"chosen: branch {result.chosen} ({'within' if result.valid else 'NOT within'} the joint ranges; "
           f"{'valid' if chosen['valid'] else 'not valid'} by §4.4.3)")
+    write_json(args, {"preset": system.name, "chosen": result.chosen, "valid": bool(result.valid),
+                      "det_j": result.det_j, "branches": branches})
     return 0 if result.valid else 1

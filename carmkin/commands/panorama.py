@@ -6,7 +6,7 @@ range (Siremobile preset: wigwag/angular/orbital 0°, table translation 0, verti
 
   carmkin panorama shot --principal-point 600,300     plan one shot: pose, joints, moves, validity
   carmkin panorama plan --length-mm 400 --overlap 0   shots covering a length on the object plane
-  carmkin panorama map --out map.png                  validity of a grid of principal points (PNG)
+  carmkin panorama map --png map.png                  validity of a grid of principal points (PNG)
   carmkin panorama parallax --length-mm 400           stitch a 3-plane marker phantom: parallax (px)
 
 shot and plan take --html FILE: a self-contained viewer page (open it in a browser) with the C-arm at the
@@ -29,16 +29,24 @@ from ._common import (
     MM_PER_M,
     UsageError,
     add_joints_argument,
+    add_json_argument,
+    add_png_argument,
     add_preset_argument,
     format_joints,
     integer,
+    joints_json,
     number,
     output_path,
     parse_joints,
     parse_numbers,
     plot_path,
     system_from_args,
+    write_json,
 )
+
+#: Lengths a panorama can cover (mm): from a fraction of one image to more than any table travel; outside, the
+#: value is a unit slip (0.4 given for 400 mm) and is refused, naming it.
+PANORAMA_LENGTH_MM = (10.0, 5000.0)
 
 HELP = "plan parallax-free panoramas: one shot, a sequence, the validity map, the parallax check"
 
@@ -51,10 +59,12 @@ def _add_common(parser: argparse.ArgumentParser) -> None:
                         help="collision margin of the validity check (default 0: only intersections)")
     parser.add_argument("--no-fallback", action="store_true", help="do not try the QP IK when no "
                         "closed-form branch is valid")
+    add_json_argument(parser)
 
 
 def _add_line(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--length-mm", type=number(0.0, open_minimum=True, unit="mm"), default=400.0, help="length to cover (default 400)")
+    parser.add_argument("--length-mm", type=number(*PANORAMA_LENGTH_MM, unit="mm"), default=400.0,
+                        help=f"length to cover, {PANORAMA_LENGTH_MM[0]:g} to {PANORAMA_LENGTH_MM[1]:g} mm (default 400)")
     parser.add_argument("--overlap", type=number(0.0, 1.0, open_maximum=True), default=0.0,
                         help="overlap of consecutive shots, fraction of a shot in [0, 1) (default 0)")
     parser.add_argument("--direction-px", metavar="DU,DV",
@@ -80,8 +90,8 @@ def register(parser: argparse.ArgumentParser) -> None:
                       help="principal points to scan (default: the reference image extended by 3 widths "
                       "left/right and 2 heights up/down)")
     vmap.add_argument("--grid", type=integer(2, 1001), default=41, help="grid points along u (v in proportion; default 41)")
-    vmap.add_argument("--out", default="panorama_map.png",
-                      help="image file, PNG (or PDF, SVG...) (default panorama_map.png)")
+    add_png_argument(vmap, "the map (default panorama_map.png)", old_names=("--out",))
+    vmap.set_defaults(png="panorama_map.png")
     vmap.add_argument("--with-plan", action="store_true", help="overlay the plan of --length-mm/--overlap")
     _add_line(vmap)
     par = sub.add_parser("parallax", help="stitch a synthetic 3-plane marker phantom and report parallax")
@@ -112,7 +122,7 @@ def _write_html(system, planner, shots, path) -> None:
 
 
 def _planner(system, args):
-    from carmkin.imaging import panorama as pano
+    from carmkin import panorama as pano
 
     q = None
     if args.q_mm_deg is not None:
@@ -125,6 +135,14 @@ def _joints(system, q) -> str:
     return format_joints(system, q)
 
 
+def _shot_json(system, shot) -> dict:
+    """One shot in the command line's units."""
+    return {"principal_point_px": list(map(float, shot.principal_point)), "valid": bool(shot.valid),
+            "category": shot.category, "path": str(shot.path), "q": joints_json(system, shot.q),
+            "moves": joints_json(system, shot.moves), "table_translation_mm": shot.table_translation * MM_PER_M,
+            "reasons": list(shot.reasons)}
+
+
 def _print_shot(system, shot, label: str = "shot") -> None:
     u, v = shot.principal_point
     tilt = math.degrees(math.acos(np.clip(shot.axis[2], -1.0, 1.0)))
@@ -132,8 +150,8 @@ def _print_shot(system, shot, label: str = "shot") -> None:
           f"{'VALID' if shot.valid else 'INVALID (' + shot.category + ')'} [{shot.path}]")
     print(f"  joints: {_joints(system, shot.q)}")
     print(f"  moves:  {_joints(system, shot.moves)}")
-    print(f"  table translation Δd0 = {shot.table_translation * 1e3:+.3f} mm (the table moves by "
-          f"{-shot.table_translation * 1e3:+.3f} mm); FK residual {shot.residual:.2e}")
+    print(f"  table: d0 changes by {shot.table_translation * 1e3:+.3f} mm, i.e. the table top moves "
+          f"{-shot.table_translation * 1e3:+.3f} mm along Z0 relative to the C-arm; FK residual {shot.residual:.2e}")
     corners = shot.outline[:: (len(shot.outline) - 1) // 4][:4]
     print("  predicted image corners in the panorama (px): "
           + " ".join(f"({a:.1f}, {b:.1f})" for a, b in corners))
@@ -161,8 +179,8 @@ def _print_plan(system, plan) -> None:
           f"{np.array2string(plan.direction, precision=4)} (reference source frame); "
           f"{len(plan.shots)} shots, overlap {plan.overlap:g}")
     for k, (shot, (lo, hi)) in enumerate(zip(plan.shots, plan.extents)):
-        print(f"covers [{lo * 1e3:+.1f}, {hi * 1e3:+.1f}] mm on the object plane")
         _print_shot(system, shot, f"shot {k + 1}")
+        print(f"  covers [{lo * 1e3:+.1f}, {hi * 1e3:+.1f}] mm on the object plane")
     print(f"table translations Δd0 (mm, from the previous shot): "
           f"{np.array2string(plan.table_translations * 1e3, precision=2)}")
     print("plan VALID" if plan.valid else "plan INVALID: " + ", ".join(
@@ -172,7 +190,7 @@ def _print_plan(system, plan) -> None:
 def run(args: argparse.Namespace) -> int:
     system = system_from_args(args)
     if args.panorama_command == "map":
-        args.out = plot_path(args.out, "--out")
+        args.png = plot_path(args.png, "--png")
     html = getattr(args, "html", None)
     html = None if html is None else output_path(html, "--html", ("html", "htm"))
     planner = _planner(system, args)
@@ -183,12 +201,17 @@ def run(args: argparse.Namespace) -> int:
         _print_shot(system, shot)
         if html is not None:
             _write_html(system, planner, [shot], html)
+        write_json(args, {"preset": system.name, "shot": _shot_json(system, shot)})
         return 0 if shot.valid else 1
     if args.panorama_command == "plan":
         plan = planner.plan(*_line_args(planner, args))
         _print_plan(system, plan)
         if html is not None:
             _write_html(system, planner, plan.shots, html)
+        write_json(args, {"preset": system.name, "valid": bool(plan.valid), "distance_mm": plan.distance * MM_PER_M,
+                          "overlap": plan.overlap, "shots": [_shot_json(system, shot) for shot in plan.shots],
+                          "covers_mm": np.asarray(plan.extents) * MM_PER_M,
+                          "table_translations_mm": plan.table_translations * MM_PER_M})
         return 0 if plan.valid else 1
     if args.panorama_command == "map":
         return _run_map(system, planner, args)
@@ -198,7 +221,7 @@ def run(args: argparse.Namespace) -> int:
 def _run_map(system, planner, args) -> int:
     import matplotlib
 
-    from carmkin.imaging import panorama as pano
+    from carmkin import panorama as pano
 
     matplotlib.use("Agg")
     w, h = planner.size
@@ -212,15 +235,18 @@ def _run_map(system, planner, args) -> int:
     vs = np.linspace(vmin, vmax, max(2, round(args.grid * (vmax - vmin) / (umax - umin))))
     categories = planner.validity_map(us, vs)
     shots = planner.plan(*_line_args(planner, args)).shots if args.with_plan else ()
-    pano.plot_validity_map(planner, us, vs, categories, args.out, shots)
+    pano.plot_validity_map(planner, us, vs, categories, args.png, shots)
     for k, name in enumerate(pano.CATEGORIES):
         print(f"{name:>20}: {np.mean(categories == k) * 100:5.1f} % of {categories.size} principal points")
-    print(f"wrote {args.out}")
+    print(f"wrote {args.png}")
+    write_json(args, {"preset": system.name, "u_px": us, "v_px": vs, "categories": list(pano.CATEGORIES),
+                      "category": categories,
+                      "fraction": {name: float(np.mean(categories == k)) for k, name in enumerate(pano.CATEGORIES)}})
     return 0
 
 
 def _run_parallax(system, planner, args) -> int:
-    from carmkin.imaging import phantom as ph
+    from carmkin.panorama import phantom as ph
 
     levels = [parse_numbers(item, 2, "--noise") for item in args.noise.split(";") if item.strip()]
     if not levels or any(np.any(level < 0) for level in levels):
@@ -234,7 +260,10 @@ def _run_parallax(system, planner, args) -> int:
     print(ph.parallax_check(planner, plan, phantom).describe())
     print(f"pose noise ({args.trials} trials per level; discrepancy to the exact reference projection):")
     print("σ (mm)  σ (deg)  RMS (px)  max (px)  f·σ_rad (px)  f·σ_m/z (px)")
-    for row in ph.noise_propagation(planner, plan, phantom, levels, trials=args.trials, seed=args.seed):
+    rows = ph.noise_propagation(planner, plan, phantom, levels, trials=args.trials, seed=args.seed)
+    for row in rows:
         print(f"{row['sigma_mm']:6g}  {row['sigma_deg']:7g}  {row['rms_px']:8.3f}  {row['max_px']:8.3f}  "
               f"{row['rotation_px']:12.3f}  {row['translation_px']:12.3f}")
+    write_json(args, {"preset": system.name, "plan_valid": bool(plan.valid), "shots": len(plan.shots),
+                      "parallax": str(ph.parallax_check(planner, plan, phantom).describe()), "noise": list(rows)})
     return 0

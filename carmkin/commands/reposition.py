@@ -24,7 +24,8 @@ import math
 
 from carmkin.extras import require
 
-from ._common import add_preset_argument, integer, number, system_from_args
+from ._common import add_json_argument, add_preset_argument, integer, joints_json, number, system_from_args, \
+    write_json
 
 HELP = "simulate radiation-free repositioning: guidance steps, the §4.6.2 experiment, table calibration"
 #: ``experiment`` is the guidance package's own run, not the reproduction: it says where §4.6.2's verdict is.
@@ -49,6 +50,7 @@ def _add_noise(parser: argparse.ArgumentParser) -> None:
                         help="σ of the operator's absolute error on prismatic moves, mm (default 1)")
     parser.add_argument("--operator-deg", type=number(0, 180, unit="deg"), default=0.2,
                         help="σ of the operator's absolute error on revolute moves, deg (default 0.2)")
+    add_json_argument(parser)
 
 
 def register(parser: argparse.ArgumentParser) -> None:
@@ -74,6 +76,7 @@ def register(parser: argparse.ArgumentParser) -> None:
     calibration.add_argument("--trials", type=integer(1), default=200, help="random rotations per cell (default 200)")
     calibration.add_argument("--method", choices=("svd", "lines"), default="svd", help="estimator (default svd)")
     calibration.add_argument("--seed", type=integer(0), default=0, help="random seed (default 0)")
+    add_json_argument(calibration, "the error table (deg)")
 
 
 def _config(args):
@@ -131,6 +134,7 @@ def _simulate(args) -> int:
     result = ex.run_task(world, config, rng, on_step=show)
     if not result.success:
         print(f"not repositioned: {result.reason}")
+        write_json(args, {"preset": system.name, "success": False, "reason": str(result.reason), "steps": count[0]})
         return 1
     from carmkin.reposition.guidance import stop_rule_bound
 
@@ -145,6 +149,11 @@ def _simulate(args) -> int:
           f"{args.threshold_deg:g}°), not the pose; here the joints at their thresholds together may "
           f"leave the source up to {bound_m * 1e3:.1f} mm / {math.degrees(bound_rad):.2f}° away (first order); "
           "lower --threshold-mm / --threshold-deg for a closer match.")
+    write_json(args, {"preset": system.name, "success": True, "moves": result.steps, "q": joints_json(system, last_q[0]),
+                      "translation_mm": result.translation * 1e3, "along_beam_mm": result.along_beam * 1e3,
+                      "rotation_deg": math.degrees(result.rotation),
+                      "image_error_mean_px": float(np.mean(result.image_errors)),
+                      "image_error_max_px": float(np.max(result.image_errors))})
     return 0
 
 
@@ -162,6 +171,7 @@ def _experiment(args) -> int:
         print(f"\nsensitivity ({args.sensitivity_tasks} tasks per row, same seed; means over repositioned tasks):")
         print(ex.format_sensitivity(ex.sensitivity(system, args.sensitivity_tasks, args.seed, config)))
     print(ROUTE_4_6_2)
+    write_json(args, {"preset": system.name, "tasks": args.tasks, "seed": args.seed, "statistics": stats})
     return 0 if stats["success"] >= MIN_SUCCESS else 1
 
 
@@ -194,6 +204,8 @@ def _calibration(args) -> int:
     print(f"{'noise (mm)':>12}" + "".join(f"{f'N = {n}':>18}" for n in positions))
     for i, n in enumerate(noise):
         print(f"{n:12.2f}" + "".join(f"{curve[i, j, 0]:9.3f} / {curve[i, j, 1]:6.3f}" for j in range(len(positions))))
+    write_json(args, {"method": args.method, "trials": args.trials, "span_mm": args.span_mm, "noise_mm": noise,
+                      "positions": positions, "median_deg": curve[..., 0], "p95_deg": curve[..., 1]})
     return 0
 
 

@@ -20,7 +20,7 @@ carmkin.reproduce.verdict: a t-test of the seed's number against the repeats at 
 
 Every experiment runs under the fitted model (``--corner-noise-px`` and ``--operator-scale`` override its
 two free parameters). Lengths print in mm, angles in degrees, image errors in px. ``--json FILE`` writes
-the numbers; ``--plot FILE`` writes the per-joint decomposition (4.6.2) or the fit's χ² map (fit).
+the numbers; ``--png FILE`` writes the per-joint decomposition (4.6.2) or the fit's χ² map (fit).
 Exit 0 on success, 2 on bad input. ``carmkin reposition experiment`` is the guidance package's own
 run, not this reproduction (it says so).
 """
@@ -28,11 +28,11 @@ run, not this reproduction (it says so).
 from __future__ import annotations
 
 import argparse
-import json
 
 from carmkin.errors import UsageError
 
-from ._common import add_preset_argument, integer, number, output_path, parse_numbers, plot_path, system_from_args
+from ._common import add_json_argument, add_png_argument, add_preset_argument, integer, number, parse_numbers, \
+    plot_path, system_from_args, write_json
 
 HELP = "reproduce §4.6.2 (+ error-model fit), §4.6.3 Table 4.6 and ch. 3 Tables 3.1-3.2 beside the seed"
 TABLES = ("model", "4.6.2", "fit", "4.6.3", "3.1", "3.2", "all")
@@ -62,8 +62,8 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--rotation", choices=("axes", "angle"), default="axes",
                         help="fit: the seed's rotational error read as the mean |XYZ Euler angle| (axes, default) "
                         "or as the angle of the relative rotation")
-    parser.add_argument("--json", metavar="FILE", help="write the numbers as JSON")
-    parser.add_argument("--plot", metavar="FILE", help="4.6.2: per-joint sensitivity and image share; fit: chi2 map")
+    add_json_argument(parser, "the numbers")
+    add_png_argument(parser, "4.6.2: the per-joint sensitivity and image share; fit: the chi2 map", old_names=("--plot",))
 
 
 def _model(args):
@@ -85,10 +85,8 @@ def _grid(text, option: str, default) -> tuple:
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.json:
-        args.json = output_path(args.json, "--json", ("json",))
-    if args.plot:
-        args.plot = plot_path(args.plot, "--plot")
+    if args.png:
+        args.png = plot_path(args.png, "--png")
     from carmkin.reproduce import chapter3, error_model, fit, joints, repositioning, stitching, verdict
 
     system, model, out = system_from_args(args), _model(args), {}
@@ -116,9 +114,9 @@ def run(args: argparse.Namespace) -> int:
         out["4.6.2"] = {k: v for k, v in stats.items()}
         out["4.6.2 joints"] = {k: (list(map(float, v)) if k != "joints" and hasattr(v, "__len__") else v)
                                for k, v in table.items()}
-        if args.plot and args.table == "4.6.2":
-            joints.plot_decomposition(square, table).savefig(args.plot)
-            print(f"wrote {args.plot}")
+        if args.png and args.table == "4.6.2":
+            joints.plot_decomposition(square, table).savefig(args.png)
+            print(f"wrote {args.png}")
         if args.table == "4.6.2":
             verdict_of("4.6.2", end=args.end)
     if args.table == "fit":
@@ -128,9 +126,9 @@ def run(args: argparse.Namespace) -> int:
                       "p_value": result.p_value, "reproduced": result.reproduced,
                       "region": [[p.corner_noise_px, p.operator_scale] for p in result.region],
                       "grid": [[p.corner_noise_px, p.operator_scale, p.chi2] for p in result.points]}
-        if args.plot:
-            fit.plot_fit(result).savefig(args.plot)
-            print(f"wrote {args.plot}")
+        if args.png:
+            fit.plot_fit(result).savefig(args.png)
+            print(f"wrote {args.png}")
     if args.table in ("4.6.3", "all"):
         rows = stitching.table(stitching.run(system, model, 5, args.seed))
         print(stitching.format_table(rows))
@@ -151,8 +149,5 @@ def run(args: argparse.Namespace) -> int:
             verdict_of("3.2", protocol=args.protocol)
     if args.table == "all":
         verdict_of(*verdict.EXPERIMENTS)
-    if args.json:
-        with open(args.json, "w") as stream:
-            json.dump(out, stream, indent=2, default=float)
-        print(f"wrote {args.json}")
+    write_json(args, out)
     return 0

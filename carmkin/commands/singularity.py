@@ -4,7 +4,7 @@ Prints, for the configuration given by --q-mm-deg (default: revolute joints at 0
 mid-range), the three factors of eq. 4.7, the distance to each singular set (deg), the rank of the
 Jacobian of `xray_source` (Pinocchio, LOCAL_WORLD_ALIGNED, rows [v; ω]), |det J|, σmin, condition number
 and Yoshikawa manipulability of the Jacobian scaled by a characteristic length (default: the orbital
-offset), and the lost directions. With --plot, writes a PNG with |det J| over (wigwag, angular) and a
+offset), and the lost directions. With --png, writes a PNG with |det J| over (wigwag, angular) and a
 second measure over --pair, singular curves overlaid (axes in deg / mm). With --check N, compares
 Pinocchio's det J with eq. 4.7 on N random configurations (spread over --random-setups random
 non-isocentric systems) and exits 1 above --tolerance.
@@ -21,14 +21,18 @@ from ._common import (
     JOINTS_FLAG,
     UsageError,
     add_joints_argument,
+    add_json_argument,
+    add_png_argument,
     add_preset_argument,
     format_joints,
     integer,
+    joints_json,
     number,
     parse_joints,
     plot_path,
     require_six_joints,
     system_from_args,
+    write_json,
 )
 
 HELP = "singular cases, |det J| / manipulability maps, and the eq. 4.7 check"
@@ -39,8 +43,8 @@ MEASURES_HELP = "det, manipulability, inverse-condition or sigma-min"
 def register(parser: argparse.ArgumentParser) -> None:
     add_preset_argument(parser)
     add_joints_argument(parser)
-    parser.add_argument("--plot", metavar="OUT.png",
-                        help="write the two singularity maps to this image (PNG, PDF, SVG...)")
+    add_png_argument(parser, "the two singularity maps", old_names=("--plot",))
+    add_json_argument(parser, "the singular cases, rank and measures at the configuration (and the --check result)")
     parser.add_argument("--pair", default="angular,orbital",
                         help="joints of the second map, e.g. 'angular,orbital' or 'wigwag,horizontal' "
                         "(default angular,orbital)")
@@ -91,12 +95,18 @@ def run(args: argparse.Namespace) -> int:
                        f"the rank and σmin of the 6×{system.nq} Jacobian")
     if args.measure not in sing.MAP_MEASURES:
         raise UsageError(f"--measure {args.measure!r}: expected one of {', '.join(sing.MAP_MEASURES)}")
-    plot = None if args.plot is None else plot_path(args.plot, "--plot")
+    plot = None if args.png is None else plot_path(args.png, "--png")
     pair = pair_of(args.pair, system)
     length = None if args.length_mm is None else args.length_mm / 1e3
     q = configuration(system, args.q_mm_deg)
     print(f"preset {system.name}: q = {format_joints(system, q, digits=4, sign=False)}")
-    print(sing.classify(system, q, near=math.radians(args.near_deg), length=length).describe())
+    found = sing.classify(system, q, near=math.radians(args.near_deg), length=length)
+    print(found.describe())
+    out = {"preset": system.name, "q": joints_json(system, q), "rank": int(found.rank),
+           "det_j": float(found.measures.det), "sigma_min": float(found.measures.sigma_min),
+           "manipulability": float(found.measures.manipulability),
+           "cases": [{"case": c.title, "singular": bool(c.singular), "near": bool(c.near),
+                      "distance_deg": math.degrees(c.distance)} for c in found.cases.values()]}
     status = 0
     if args.check:
         worst = sing.check_determinant(system, args.check, args.random_setups, args.seed)
@@ -105,9 +115,11 @@ def run(args: argparse.Namespace) -> int:
               f"non-isocentric systems: max |difference| {worst:.3e} {'<=' if ok else '>'} {args.tolerance:g}: "
               f"{'PASS' if ok else 'FAIL'}")
         status = 0 if ok else 1
+        out["check"] = {"configurations": args.check, "max_difference": worst, "tolerance": args.tolerance, "pass": ok}
     if plot is not None:
         from carmkin import plots
 
         plots.singularity_maps(system, q, plot, pair=pair, n=args.grid, measure=args.measure, length=length)
         print(f"wrote {plot}")
+    write_json(args, out)
     return status

@@ -7,7 +7,7 @@ the table, the floor and a box patient (--patient-box-mm) with a --margin-mm cle
 clearance, the plain rotation's isocentre drift, the joint that limits the arc and the short-scan check
 (arc vs 180° + fan angle); exit 1 when the arc does not fit (the obstruction, its angle and the largest
 feasible arc are printed). Exports: --rtk-xml (RTK geometry, mm), --astra (.npy cone_vec rows, mm), --tigre
-(.npz TIGRE arrays, mm), --html (the arc in the viewer), --plot (clearance and drift along the arc).
+(.npz TIGRE arrays, mm), --html (the arc in the viewer), --png (clearance and drift along the arc), --json (the plan).
 
 ``carmkin sweep reconstruct`` forward-projects RTK's Shepp–Logan along the planned sweep (Joseph, CPU),
 reconstructs it by FDK with Parker weights and prints the RMSE; --study adds the perturbations (joint encoder
@@ -23,8 +23,13 @@ import numpy as np
 
 from carmkin.errors import UsageError
 
-from ._common import MM_PER_M, add_preset_argument, integer, number, output_path, parse_joints, parse_numbers, \
-    plot_path, system_from_args
+from ._common import JOINTS_FLAG, MM_PER_M, add_joints_argument, add_json_argument, add_png_argument, \
+    add_preset_argument, integer, joints_json, number, output_path, parse_joints, parse_numbers, plot_path, \
+    system_from_args, unit_slip, write_json
+
+#: Sizes of a box patient along each axis (mm): a newborn's limb to the longest body; outside, a unit slip
+#: (0.5,0.3,1.6 given in m) refused, naming it.
+PATIENT_BOX_MM = (20.0, 3000.0)
 
 HELP = "plan a collision-free cone-beam CT sweep, export its geometry (RTK, ASTRA, TIGRE), reconstruct it"
 
@@ -39,9 +44,8 @@ def _plan_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--joint", default="orbital", metavar="NAME[:W],...",
                         help="revolute joint(s) that turn: orbital (default), angular, or weights such as "
                         "orbital:1,angular:0.3 (rad per rad)")
-    parser.add_argument("--q-start", metavar="V1,V2,...",
-                        help="joints (mm/deg) whose orientation starts the arc (default: the arc centred on the "
-                        "joint's mid-range)")
+    add_joints_argument(parser, "the configuration whose orientation starts the arc",
+                        "the arc centred on the joint's mid-range", old_names=("--q-start",))
     parser.add_argument("--distance-mm", type=number(1.0, 10000.0, unit="mm"), default=None,
                         help="source-to-target distance (mm, default the source-to-orbital-axis distance)")
     parser.add_argument("--plain", action="store_true", help="plan the plain joint rotation (no compensation)")
@@ -55,18 +59,21 @@ def register(parser: argparse.ArgumentParser) -> None:
     sub = parser.add_subparsers(dest="action", required=True, metavar="ACTION")
     plan = sub.add_parser("plan", help="plan and check a sweep, export its geometry")
     _plan_arguments(plan)
-    plan.add_argument("--rtk-xml", metavar="FILE", help="write RTK's geometry XML (mm; needs the cbct extra)")
+    plan.add_argument("--rtk-xml", metavar="FILE",
+                      help="write RTK's geometry XML (mm; RTK's file format, written without itk-rtk)")
     plan.add_argument("--astra", metavar="FILE.npy", help="write ASTRA cone_vec rows (n, 12), mm")
     plan.add_argument("--tigre", metavar="FILE.npz", help="write TIGRE arbitrary-geometry arrays, mm")
     plan.add_argument("--html", metavar="FILE", help="write the arc in the viewer as a static page")
-    plan.add_argument("--plot", metavar="FILE", help="plot clearance and drift along the arc")
+    add_png_argument(plan, "clearance and drift along the arc", old_names=("--plot",))
+    add_json_argument(plan, "the plan (clearance mm, joints mm/deg per frame, exit status)")
     reco = sub.add_parser("reconstruct", help="simulate and reconstruct the sweep with RTK (cbct extra)")
     _plan_arguments(reco)
     reco.add_argument("--size", type=integer(8, 512), default=64, help="voxels per side (default 64)")
     reco.add_argument("--pixels", type=integer(8, 2048), default=128,
                       help="detector pixels per side, same physical size (default 128)")
     reco.add_argument("--study", action="store_true", help="also reconstruct with the perturbed geometries")
-    reco.add_argument("--plot", metavar="FILE", help="slices and a line profile")
+    add_png_argument(reco, "slices and a line profile", old_names=("--plot",))
+    add_json_argument(reco, "the reconstructions' RMSE")
 
 
 def _joint(text: str):
@@ -88,6 +95,11 @@ def _patient(text: str | None):
     values = parse_numbers(text, None, "--patient-box-mm")
     if len(values) not in (3, 6) or np.any(values[:3] <= 0):
         raise UsageError(f"--patient-box-mm needs W,H,L (> 0) and optionally X,Y,Z (mm), got {text!r}")
+    low, high = PATIENT_BOX_MM
+    for axis, size in zip("WHL", values[:3]):
+        if not low <= size <= high:
+            raise UsageError(f"--patient-box-mm {text}: {axis} = {size:g} mm is not a body size (expected {low:g} to "
+                             f"{high:g} mm){unit_slip(size, low, high, 'mm')}")
     centre = values[3:] if len(values) == 6 else np.zeros(3)
     return [Obstacle.box("patient", values[:3] / MM_PER_M, center=centre / MM_PER_M)]
 
@@ -95,7 +107,7 @@ def _patient(text: str | None):
 def _plan(args, system):
     from carmkin.sweeps import plan_sweep
 
-    q_start = parse_joints(args.q_start, system, "--q-start") if args.q_start else None
+    q_start = parse_joints(args.q_mm_deg, system, JOINTS_FLAG) if args.q_mm_deg else None
     return plan_sweep(system, parse_numbers(args.target_mm, 3, "--target-mm") / MM_PER_M, args.arc_deg, args.views,
                       patient=_patient(args.patient_box_mm), q_start=q_start, joint=_joint(args.joint),
                       distance=None if args.distance_mm is None else args.distance_mm / MM_PER_M,
@@ -109,16 +121,33 @@ def run(args: argparse.Namespace) -> int:
     paths = {name: getattr(args, name) and output_path(getattr(args, name), f"--{name.replace('_', '-')}", suffixes)
              for name, suffixes in (("rtk_xml", ("xml",)), ("astra", ("npy",)), ("tigre", ("npz",)),
                                     ("html", ("html", "htm")))}
-    plot = plot_path(args.plot, "--plot") if args.plot else None
+    plot = plot_path(args.png, "--png") if args.png else None
     sweep = _plan(args, system)
     print(sweep.summary())
     _export(sweep, paths, plot)
+    write_json(args, _sweep_json(sweep))
     return 0 if sweep.success else 1
+
+
+def _sweep_json(sweep) -> dict:
+    """The plan in the command line's units (mm, degrees)."""
+    q = np.where(np.isfinite(sweep.q), sweep.q, np.nan)
+    return {"preset": sweep.system.name, "success": bool(sweep.success), "compensated": bool(sweep.compensated),
+            "views": int(sweep.n_views), "arc_deg": math.degrees(sweep.arc), "target_mm": sweep.target * MM_PER_M,
+            "distance_mm": sweep.distance * MM_PER_M, "min_clearance_mm": sweep.min_clearance * MM_PER_M,
+            "margin_mm": sweep.margin * MM_PER_M, "limiting_joint": sweep.limiting_joint,
+            "failure": None if sweep.failure is None else str(sweep.failure),
+            "q": [joints_json(sweep.system, row) for row in q]}
 
 
 def _export(sweep, paths, plot) -> None:
     from carmkin.sweeps import export
 
+    if not sweep.success:  # a failed sweep's frames include poses the machine cannot take: no geometry files
+        skipped = [p for name, p in paths.items() if p and name != "html"]
+        if skipped:
+            print(f"not written (the sweep failed; plan its feasible arc instead): {', '.join(map(str, skipped))}")
+        paths = {name: (p if name == "html" else None) for name, p in paths.items()}
     if paths["astra"]:
         np.save(paths["astra"], export.astra_vectors(sweep))
         print(f"wrote {paths['astra']} (ASTRA cone_vec, mm)")
@@ -139,9 +168,9 @@ def _export(sweep, paths, plot) -> None:
 
 
 def _html(sweep, path) -> None:
-    import meshcat.geometry as g
+    from carmkin.viz import CArmViewer  # first: it imports meshcat without its deprecation warning
 
-    from carmkin.viz import CArmViewer
+    import meshcat.geometry as g  # noqa: I001
 
     q = np.where(np.isfinite(sweep.q), sweep.q, sweep.q_plain)
     viewer = CArmViewer(sweep.system, q=q[0])
@@ -158,10 +187,11 @@ def _html(sweep, path) -> None:
 def _reconstruct(args, system) -> int:
     from carmkin.sweeps import reconstruct as rc
 
-    plot = plot_path(args.plot, "--plot") if args.plot else None
+    plot = plot_path(args.png, "--png") if args.png else None
     sweep = _plan(args, rc.with_detector(system, args.pixels, args.pixels))
     print(sweep.summary())
     if not sweep.success:
+        write_json(args, {"plan": _sweep_json(sweep), "reconstructions": []})
         return 1
     volume = rc.Volume(args.size)
     results = rc.perturbation_study(sweep, volume) if args.study else [rc.simulate_and_reconstruct(sweep, volume)]
@@ -174,4 +204,6 @@ def _reconstruct(args, system) -> int:
 
         study(results, plot)
         print(f"wrote {plot}")
+    write_json(args, {"plan": _sweep_json(sweep), "size_voxels": args.size, "pixels": args.pixels,
+                      "reconstructions": [{"label": r.label, "rmse": float(r.rmse)} for r in results]})
     return 0

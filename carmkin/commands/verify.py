@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import argparse
 
-from ._common import add_preset_argument, integer, number, system_from_args
+from ._common import add_json_argument, add_preset_argument, integer, number, system_from_args, write_json
 
 HELP = "cross-check closed-form kinematics against Pinocchio (exit 1 above tolerance)"
 
@@ -23,6 +23,7 @@ def register(parser: argparse.ArgumentParser) -> None:
                         help="also use K random table setups and non-isocentric geometries (default K=100)")
     parser.add_argument("--seed", type=integer(0), default=0, help="random seed (default 0)")
     parser.add_argument("--tolerance", type=number(0.0), default=1e-12, help="pass threshold in m and rad (default 1e-12)")
+    add_json_argument(parser, "the worst errors per frame (m, rad)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -39,4 +40,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"{frame:<14}{report.position_error[frame]:>22.3e}{report.rotation_error[frame]:>24.3e}")
     ok = report.worst <= args.tolerance
     print(f"worst {report.worst:.3e} {'<=' if ok else '>'} tolerance {args.tolerance:g}: {'PASS' if ok else 'FAIL'}")
+    write_json(args, {"preset": system.name, "samples": report.samples, "systems": report.systems,
+                      "position_error_m": {f: report.position_error[f] for f in FRAMES},
+                      "rotation_error_rad": {f: report.rotation_error[f] for f in FRAMES},
+                      "worst": report.worst, "tolerance": args.tolerance, "pass": bool(ok)})
     return 0 if ok else 1

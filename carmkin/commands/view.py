@@ -29,6 +29,7 @@ from ._common import (
     JOINTS_FLAG,
     JOINTS_METAVAR,
     MM_PER_M,
+    add_alias,
     add_joints_argument,
     add_preset_argument,
     integer,
@@ -38,6 +39,7 @@ from ._common import (
     read_pose,
     system_from_args,
 )
+from ._scene import add_patient_arguments, describe_patient, patient_from_args, table_top_y
 
 HELP = "show the C-arm + table in the browser (meshcat on 127.0.0.1, or --html FILE)"
 
@@ -45,26 +47,33 @@ HELP = "show the C-arm + table in the browser (meshcat on 127.0.0.1, or --html F
 def register(parser: argparse.ArgumentParser) -> None:
     add_preset_argument(parser)
     add_joints_argument(parser, "configuration to show", "middle of the ranges", old_names=("--q",))
-    parser.add_argument("--target", metavar=JOINTS_METAVAR,
-                        help="target configuration: drawn as a ghost, move animated")
-    parser.add_argument("--target-pose", metavar="FILE",
+    parser.add_argument("--to-q-mm-deg", dest="to_q_mm_deg", metavar=JOINTS_METAVAR,
+                        help="configuration to move to (mm/deg, as --q-mm-deg): drawn as a ghost, move animated")
+    add_alias(parser, "--target", "--to-q-mm-deg", "to_q_mm_deg", metavar=JOINTS_METAVAR)
+    add_alias(parser, "--target-pose", "--to-pose", "to_pose", metavar="FILE")
+    parser.add_argument("--to-pose", metavar="FILE",
                         help="pose of xray_source in the table frame, translation in mm (4x4 text matrix, or JSON "
                         "as for carmkin ik --pose-file; a nearly rigid one is projected, with a note): ghost cone")
-    parser.add_argument("--no-animate", action="store_true", help="with --target: only the ghost, no animation")
+    parser.add_argument("--no-animate", action="store_true", help="with --to-q-mm-deg: only the ghost, no animation")
     parser.add_argument("--frames", type=integer(2), default=40, help="frames of the animated move (default 40)")
     parser.add_argument("--fps", type=number(0.0, open_minimum=True), default=20.0, help="frames per second of the move (default 20)")
     parser.add_argument("--margin-mm", type=number(0.0, open_minimum=True, unit="mm"), default=100.0,
                         help="colour C-arm parts closer than this to the table/floor (default 100 mm)")
     parser.add_argument("--html", metavar="FILE", help="write a self-contained static page and exit")
     parser.add_argument("--png", metavar="FILE", help="also render the page to PNG with headless Chromium")
+    add_patient_arguments(parser, default="none")
     parser.add_argument("--port", type=integer(1, 65535), default=None,
                         help="HTTP port of the live viewer (default: 7000 or the next free one)")
     parser.add_argument("--serve-seconds", type=number(0.0, unit="s"), default=None,
                         help="stop serving after this many seconds (default: until Ctrl-C)")
 
 
-def _draw(viewer, args, q_target, T_target) -> None:
-    """Distances at the current configuration, target pose, ghost and move, as the flags ask."""
+def _draw(viewer, args, q_target, T_target, patient=None) -> None:
+    """Distances at the current configuration, the patient, target pose, ghost and move, as the flags ask."""
+    if patient is not None:
+        from carmkin.viz.views import draw_patient
+
+        draw_patient(viewer, patient)
     distances = viewer.show_distances(margin=args.margin_mm / MM_PER_M)
     for obstacle in sorted({d.obstacle for d in distances}):
         closest = min((d for d in distances if d.obstacle == obstacle), key=lambda d: d.distance)
@@ -102,7 +111,7 @@ def _serve(system, args, q, q_target, T_target) -> None:
     try:
         with LoopbackServer(port=args.port) as server:
             viewer = CArmViewer(system, server.visualizer(), q)
-            _draw(viewer, args, q_target, T_target)
+            _draw(viewer, args, q_target, T_target, patient_from_args(system, args))
             print(f"meshcat viewer: {server.web_url}  (listening on 127.0.0.1 only; Ctrl-C to stop)", flush=True)
             try:
                 stop.wait(args.serve_seconds)
@@ -118,15 +127,19 @@ def run(args: argparse.Namespace) -> int:
 
     system = system_from_args(args)
     q = parse_joints(args.q_mm_deg, system, JOINTS_FLAG) if args.q_mm_deg else None  # every input checked before any work
-    q_target = parse_joints(args.target, system, "--target") if args.target else None
-    T_target = read_pose(args.target_pose, "--target-pose") if args.target_pose else None
+    q_target = parse_joints(args.to_q_mm_deg, system, "--to-q-mm-deg") if args.to_q_mm_deg else None
+    T_target = read_pose(args.to_pose, "--to-pose") if args.to_pose else None
     if args.html:
         args.html = output_path(args.html, "--html", ("html", "htm"))
     if args.png:
         args.png = output_path(args.png, "--png", ("png",))
+    patient = patient_from_args(system, args)
+    if patient is not None:
+        print(f"table top: upper surface at Y0 = {table_top_y(system) * MM_PER_M:+.1f} mm (Y0 points down); patient: "
+              f"{describe_patient(patient, args.patient_position)}")
     if args.html or args.png:
         viewer = CArmViewer(system, q=q)
-        _draw(viewer, args, q_target, T_target)
+        _draw(viewer, args, q_target, T_target, patient)
         _write_static(viewer, args)
     else:
         _serve(system, args, q, q_target, T_target)

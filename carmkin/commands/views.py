@@ -7,18 +7,24 @@ secondary CRA +, CAU −; degrees) of --target-mm (table frame, mm) for a patien
 view instead (`carmkin views plan --standard list` lists them). It prints the joints (mm, deg), the clearance
 to patient, table and floor (mm), and when the view is unreachable the reason and the nearest reachable view.
 `carmkin views map` prints how many (primary, secondary) cells are reachable (default −90…90 × −45…45 at
---step-deg 5); --plot writes the map as a figure, --html a static page with the sphere of view directions
+--step-deg 5); --png writes the map as a figure, --html a static page with the sphere of view directions
 coloured by clearance, --json the cells. Exit 1 when a planned view is unreachable.
+`carmkin views optimal --centreline FILE.csv [--others FILE.csv ...]` maps the foreshortening and overlap of a
+vessel over the (primary, secondary) grid with the reachability of each view, and prints the optimal view, the
+best reachable one, its loss and its plan; --png writes the map figure, --json the answer (`-`: stdout). CSV
+files: one point a row, x,y,z in mm (an optional fourth column: the radius, mm; a header line is skipped) in the
+table frame (--frame table, default) or the patient's LPS frame (--frame patient, placed by the patient's
+position); --target-mm defaults to the centreline's midpoint. Exit 1 when no view of the map is reachable.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 
 import numpy as np
 
 from . import _common as common
+from . import _scene
 
 HELP = "plan clinical views (LAO/RAO, CRA/CAU) around a patient, map reachable views"
 MM = 1000.0
@@ -28,16 +34,7 @@ def _common(parser: argparse.ArgumentParser) -> None:
     common.add_preset_argument(parser)
     parser.add_argument("--target-mm", metavar="X,Y,Z", default="0,0,0",
                         help="the point the beam passes through, table frame (mm, default 0,0,0)")
-    parser.add_argument("--patient", choices=("parametric", "none"), default="parametric",
-                        help="a parametric patient lying on the table (default) or none")
-    parser.add_argument("--patient-position", default="HFS", metavar="CODE",
-                        help="DICOM Patient Position (HFS, HFP, HFDR, HFDL, FFS, FFP, FFDR, FFDL; default HFS)")
-    parser.add_argument("--patient-height-mm", type=common.number(400.0, 2800.0, unit="mm"), default=1750.0,
-                        help="body height (mm, default 1750)")
-    parser.add_argument("--patient-mass-kg", type=common.number(1.0, 650.0, unit="kg"), default=75.0,
-                        help="body mass (kg, default 75)")
-    parser.add_argument("--patient-chest-z-mm", type=common.number(-3000.0, 3000.0, unit="mm"), default=0.0,
-                        help="the chest (nipple line) along the table, Z0 (mm, default 0)")
+    _scene.add_patient_arguments(parser, default="parametric")
     parser.add_argument("--margin-mm", type=common.number(0.0, 1000.0, unit="mm"), default=20.0,
                         help="clearance every moving part keeps (mm, default 20)")
 
@@ -57,8 +54,10 @@ def register(parser: argparse.ArgumentParser) -> None:
                       help="source-to-target distance (mm; default: free)")
     plan.add_argument("--rotation-deg", type=common.number(-180.0, 180.0, unit="deg"),
                       help="detector rotation about the beam (deg, as the plan prints it; default: free)")
-    plan.add_argument("--q-mm-deg", metavar="Q", help="current joints (mm, deg): the plan moves least from them")
-    plan.add_argument("--json", action="store_true", help="print the plan as JSON")
+    common.add_joints_argument(plan, "the current configuration: the plan moves least from it", "none")
+    common.add_json_argument(plan, "the plan")
+    common.add_png_argument(plan, "the plan: table, patient, C-arm, beam and target (two orthographic views)")
+    plan.add_argument("--html", metavar="FILE", help="write the plan in the viewer: C-arm, table, patient, beam, target")
     plan.set_defaults(action_run=_plan)
     cmap = sub.add_parser("map", help="map reachable views", description=__doc__,
                           formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -71,10 +70,33 @@ def register(parser: argparse.ArgumentParser) -> None:
     cmap.add_argument("--compare", action="store_true",
                       help="side by side: the C-arm alone, with the table translation, and with the motorized "
                            "preset's table joints (each at its limits, one at a time)")
-    cmap.add_argument("--plot", metavar="FILE", help="write the map as a figure (png, pdf, svg, ...)")
+    common.add_png_argument(cmap, "the map", old_names=("--plot",))
     cmap.add_argument("--html", metavar="FILE", help="write a static page: the sphere of views coloured by clearance")
-    cmap.add_argument("--json", metavar="FILE", help="write the cells as JSON")
+    common.add_json_argument(cmap, "the cells")
     cmap.set_defaults(action_run=_map)
+    best = sub.add_parser("optimal", help="the best reachable view of a vessel (foreshortening, overlap)",
+                          description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    _common(best)
+    best.set_defaults(target_mm=None)
+    best.add_argument("--centreline", metavar="FILE.csv", required=True,
+                      help="the vessel of interest: x,y,z (mm) a row, optional radius (mm)")
+    best.add_argument("--others", metavar="FILE.csv", nargs="+", action="extend", default=[],
+                      help="the other vessels, drawn as tubes (same format)")
+    best.add_argument("--frame", choices=("table", "patient"), default="table",
+                      help="frame of the CSV points: the table frame (default) or the patient's LPS frame")
+    best.add_argument("--radius-mm", type=common.number(0.0, 30.0, unit="mm"), default=1.5,
+                      help="tube radius of the other vessels without a radius column (mm, default 1.5)")
+    best.add_argument("--weights", metavar="F,O", default="0.5,0.5",
+                      help="weights of foreshortening and overlap in the score (default 0.5,0.5)")
+    best.add_argument("--primary-range-deg", metavar="LO,HI", default="-90,90", help="primary angles (deg)")
+    best.add_argument("--secondary-range-deg", metavar="LO,HI", default="-45,45", help="secondary angles (deg)")
+    best.add_argument("--step-deg", type=common.number(0.1, 90.0, unit="deg"), default=2.0,
+                      help="grid step (deg, default 2)")
+    best.add_argument("--workers", type=common.integer(1, 256), default=None,
+                      help="processes for the reachability of 2048 cells or more (default: the usable cores)")
+    best.add_argument("--png", metavar="FILE", help="write the map figure (png, pdf, svg, ...)")
+    best.add_argument("--json", metavar="FILE", help="write the answer as JSON ('-': standard output)")
+    best.set_defaults(action_run=_optimal)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -82,12 +104,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _patient(system, args):
-    from carmkin.patient import ParametricPatient
-
-    if args.patient == "none":
-        return None
-    return ParametricPatient.on_table(system, args.patient_height_mm / MM, args.patient_mass_kg, args.patient_position,
-                                      args.patient_chest_z_mm / MM)
+    return _scene.patient_from_args(system, args)
 
 
 def _plan(args: argparse.Namespace) -> int:
@@ -135,10 +152,14 @@ def _plan(args: argparse.Namespace) -> int:
 
 
 def _report(args, system, plan, position) -> int:
-    if args.json:
-        print(json.dumps(_plan_json(system, plan, position), indent=2))
-    else:
-        _print_plan(system, plan, position)
+    patient = None if isinstance(position, str) else position
+    print(_scene.describe_scene(system, plan.view.target, patient, getattr(patient, "position", position)))
+    _print_plan(system, plan, position)
+    common.write_json(args, _plan_json(system, plan, position))
+    shown = plan.q if plan.success else (plan.nearest.q if plan.nearest is not None else None)
+    if shown is not None:
+        _scene.write_figures(args, system, shown, patient, plan.view.target,
+                             f"view {_describe_view(plan.view, position)}" + ("" if plan.success else " (nearest drawn)"))
     return 0 if plan.success else 1
 
 
@@ -204,9 +225,9 @@ def _map(args: argparse.Namespace) -> int:
     target = common.parse_numbers(args.target_mm, 3, "--target-mm") / MM
     primary = _range(args.primary_range_deg, "--primary-range-deg", args.step_deg)
     secondary = _range(args.secondary_range_deg, "--secondary-range-deg", args.step_deg)
-    paths = {k: v for k, v in (("plot", args.plot and common.plot_path(args.plot, "--plot")),
+    paths = {k: v for k, v in (("plot", args.png and common.plot_path(args.png, "--png")),
                                ("html", args.html and common.output_path(args.html, "--html", ("html",))),
-                               ("json", args.json and common.output_path(args.json, "--json", ("json",)))) if v}
+                               ("json", args.json)) if v}
     patient = _patient(system, args)
     if args.compare:
         return _compare(args, system, target, primary, secondary, patient, paths)
@@ -237,8 +258,7 @@ def _map(args: argparse.Namespace) -> int:
                   "binding": str(m.binding[i, j]),
                   "q": common.joints_json(system, m.q[i, j]) if m.reachable[i, j] else None}
                  for i, p in enumerate(m.primary_deg) for j, s in enumerate(m.secondary_deg)]
-        paths["json"].write_text(json.dumps({"target_mm": list(target * MM), "cells": cells}), encoding="utf-8")
-        print(f"wrote {paths['json']}")
+        common.write_json(args, {"target_mm": list(target * MM), "cells": cells})
     return 0
 
 
@@ -250,7 +270,7 @@ def _compare(args, system, target, primary, secondary, patient, paths) -> int:
         raise common.UsageError("--compare: give a 6-joint system (the third map adds the motorized preset's table "
                                 "joints to it)")
     if "html" in paths or "json" in paths:
-        raise common.UsageError("--compare writes --plot only")
+        raise common.UsageError("--compare writes --png only")
     import dataclasses
 
     # This C-arm on the motorized preset's table joints.
@@ -264,3 +284,102 @@ def _compare(args, system, target, primary, secondary, patient, paths) -> int:
         compare_figure(maps).savefig(paths["plot"])
         print(f"wrote {paths['plot']}")
     return 0
+
+
+def _read_centreline(path, option, frame, patient, position):
+    """A CSV of points (mm; optional radius column) as a :class:`carmkin.views.Centreline` (table frame, m)."""
+    from carmkin.views import Centreline, centreline_from_patient
+
+    try:
+        with open(path, encoding="utf-8") as handle:
+            rows = [line for line in handle.read().splitlines() if line.strip()]
+    except OSError as exc:
+        raise common.UsageError(f"{option} {path}: cannot read ({exc.strerror})") from None
+    if rows and not any(c.isdigit() for c in rows[0].split(",")[0]):
+        rows = rows[1:]  # a header
+    try:
+        data = np.array([[float(v) for v in row.split(",")] for row in rows], dtype=float)
+    except ValueError as exc:
+        raise common.UsageError(f"{option} {path}: expected numbers x,y,z[,radius] in mm a row ({exc})") from None
+    if data.ndim != 2 or data.shape[1] not in (3, 4):
+        raise common.UsageError(f"{option} {path}: expected 3 or 4 columns (x,y,z[,radius] in mm), got "
+                                f"{data.shape[1] if data.ndim == 2 and len(data) else 0}")
+    radii = data[:, 3] if data.shape[1] == 4 else None
+    label = f"{option} {path}"
+    if frame == "patient":
+        return centreline_from_patient(data[:, :3], patient if patient is not None else position, radii, label)
+    return Centreline(data[:, :3] / MM, None if radii is None else radii / MM, label)
+
+
+def _optimal(args: argparse.Namespace) -> int:
+    from carmkin.views import optimal_view_map
+
+    system = common.system_from_args(args)
+    primary = _range(args.primary_range_deg, "--primary-range-deg", args.step_deg)
+    secondary = _range(args.secondary_range_deg, "--secondary-range-deg", args.step_deg)
+    weights = common.parse_numbers(args.weights, 2, "--weights")
+    png = args.png and common.plot_path(args.png, "--png")
+    out = args.json if args.json == "-" else args.json and common.output_path(args.json, "--json", ("json",))
+    patient = _patient(system, args)
+    position = patient or args.patient_position
+    line = _read_centreline(args.centreline, "--centreline", args.frame, patient, args.patient_position)
+    others = [_read_centreline(f, "--others", args.frame, patient, args.patient_position)
+              for f in args.others]
+    target = None if args.target_mm is None else common.parse_numbers(args.target_mm, 3, "--target-mm") / MM
+    m = optimal_view_map(system, line, primary, secondary, patient, [o.points for o in others], target,
+                         radius=args.radius_mm / MM, weights=weights, margin=args.margin_mm / MM, position=position,
+                         workers=args.workers)
+    answer = _optimal_json(system, m)
+    if out != "-":
+        _print_optimal(system, m, primary, secondary, args.step_deg)
+    if png:
+        from carmkin.views.optimal_figure import optimal_map_figure
+
+        optimal_map_figure(m).savefig(png)
+        print(f"wrote {png}")
+    if out == "-":
+        print(json.dumps(answer, indent=2))
+    elif out:
+        out.write_text(json.dumps(answer, indent=2), encoding="utf-8")
+        print(f"wrote {out}")
+    return 0 if m.best_reachable is not None else 1
+
+
+def _print_optimal(system, m, primary, secondary, step) -> None:
+    print(f"preset {system.name}: {int(m.reachable.sum())} of {m.reachable.size} views reachable, primary "
+          f"{primary[0]:g}..{primary[-1]:g}°, secondary {secondary[0]:g}..{secondary[-1]:g}° at {step:g}°; target "
+          f"{np.round(m.target * MM, 1).tolist()} mm; score = {m.weights[0]:g} foreshortening + {m.weights[1]:g} overlap")
+    print(f"{'view':20s} {'primary':>8s} {'secondary':>9s} {'foreshort.':>10s} {'worst':>7s} {'overlap':>8s} "
+          f"{'score':>7s} {'clearance':>10s}")
+    for label, angles in (("optimal", m.optimal), ("best reachable", m.best_reachable)):
+        if angles is None:
+            print(f"{label:20s} none reachable")
+            continue
+        i, j = m.cell(angles)
+        clear = f"{m.clearance[i, j] * MM:8.1f} mm" if m.reachable[i, j] else "unreachable"
+        print(f"{label:20s} {angles[0]:+8.1f} {angles[1]:+9.1f} {100 * m.foreshortening[i, j]:9.2f}% "
+              f"{100 * m.worst_foreshortening[i, j]:6.2f}% {100 * m.overlap[i, j]:7.2f}% {m.score[i, j]:7.4f} {clear:>10s}")
+    for line in m.summary()[2:]:
+        print(line)
+    if m.plan is not None and m.plan.success:
+        print(f"plan of the best reachable view: q = {common.format_joints(system, m.plan.q)}, clearance "
+              f"{m.plan.clearance * MM:.1f} mm")
+
+
+def _optimal_json(system, m) -> dict:
+    def cell(angles):
+        if angles is None:
+            return None
+        i, j = m.cell(angles)
+        return {"primary_deg": angles[0], "secondary_deg": angles[1], "reachable": bool(m.reachable[i, j]),
+                "foreshortening": float(m.foreshortening[i, j]), "worst_foreshortening": float(m.worst_foreshortening[i, j]),
+                "overlap": float(m.overlap[i, j]), "score": float(m.score[i, j]),
+                "clearance_mm": float(m.clearance[i, j] * MM) if m.reachable[i, j] else None}
+
+    plan = None
+    if m.plan is not None and m.plan.success:
+        plan = {"q": common.joints_json(system, m.plan.q), "clearance_mm": m.plan.clearance * MM,
+                "distance_mm": m.plan.distance * MM}
+    return {"target_mm": list(m.target * MM), "weights": list(m.weights), "optimal": cell(m.optimal),
+            "best_reachable": cell(m.best_reachable), "optimum_reachable": m.optimum_reachable,
+            "loss": m.loss, "plan": plan, "reachable_cells": int(m.reachable.sum()), "cells": int(m.reachable.size)}

@@ -19,19 +19,20 @@ vertical, wigwag, horizontal, angular, orbital (mm or degrees).
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 
 from ._common import (
     DEFAULT_PRESET,
     MM_PER_M,
     UsageError,
+    add_json_argument,
+    add_png_argument,
     add_preset_argument,
     integer,
     number,
-    output_path,
     plot_path,
     system_from_args,
+    write_json,
 )
 
 #: Preset used by ``--table-dofs`` when ``--preset`` is left at its default.
@@ -47,8 +48,8 @@ def register(parser: argparse.ArgumentParser) -> None:
     add_preset_argument(parser)
     parser.add_argument("--translations-mm", type=number(unit="mm"), nargs="+", default=None,
                         metavar="D0", help="table translations d0 in mm (default: the paper's 0 50 ... 400)")
-    parser.add_argument("--json", metavar="FILE", help="write the per-joint statistics as JSON")
-    parser.add_argument("--plot", metavar="FILE", help="write a plot of excess and K against translation (PNG, PDF...)")
+    add_json_argument(parser, "the per-joint statistics")
+    add_png_argument(parser, "excess and K against translation", old_names=("--plot",))
     parser.add_argument("--tolerance", type=number(0.0), default=1e-9,
                         help="excess (m or rad) still counted as inside a range (default 1e-9)")
     parser.add_argument("--table-dofs", choices=(*TABLE_MODELS, "compare"),
@@ -65,10 +66,12 @@ def register(parser: argparse.ArgumentParser) -> None:
 def _print_table(result) -> None:
     from carmkin.studies import workspace
 
-    print(f"{'quantity':<18}{'d0 (mm)':>8}{'ours':>11}{'dissertation':>14}")
+    print(f"{'quantity':<22}{'d0 (mm)':>8}{'ours':>11}{'dissertation':>14}")
     for quantity, d0, ours, paper in workspace.comparison_rows(result):
         flag = "" if paper in ("—", ours) else "  *"
-        print(f"{quantity:<18}{d0:>8}{ours:>11}{paper:>14}{flag}")
+        joint, stat = quantity.split()
+        label = quantity if stat == "K" else f"{quantity} ({workspace.UNITS[joint][0]})"  # K is a count
+        print(f"{label:<22}{d0:>8}{ours:>11}{paper:>14}{flag}")
     print("(* differs from the printed value; see docs/errata/workspace.md)")
     keys = "".join(f"{workspace.translation_key(r.translation):>8}" for r in result.results)
     print(f"{'joint':<12}{keys}   (K per d0)")
@@ -92,22 +95,17 @@ def run_table_study(args: argparse.Namespace) -> int:
     print(f"preset {system.name}: {args.poses} desired poses (position + principal axis, roll free) from "
           f"random in-range collision-free configurations of all {system.nq} joints, seed {args.seed}")
     print("\n".join(table_workspace.table_rows(results)))
-    if args.json:
-        with open(args.json, "w") as stream:
-            json.dump({r.model: {"fraction": r.fraction, "reached": int(r.reached.sum()), "poses": len(r.reached)}
-                       for r in results}, stream, indent=2)
-        print(f"wrote {args.json}")
-    if args.plot:
-        table_workspace.plot(results, args.plot)
-        print(f"wrote {args.plot}")
+    write_json(args, {r.model: {"fraction": r.fraction, "reached": int(r.reached.sum()), "poses": len(r.reached)}
+                      for r in results})
+    if args.png:
+        table_workspace.plot(results, args.png)
+        print(f"wrote {args.png}")
     return 0
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.json:
-        args.json = output_path(args.json, "--json", ("json",))
-    if args.plot:
-        args.plot = plot_path(args.plot, "--plot")
+    if args.png:
+        args.png = plot_path(args.png, "--png")
     if getattr(args, "table_dofs", None):
         return run_table_study(args)
     from tqdm import tqdm
@@ -133,13 +131,10 @@ def run(args: argparse.Namespace) -> int:
     print(f"reachable within all ranges: 5-DOF IK {result.fraction_5dof:.2%}, "
           f"6-DOF model {result.fraction_6dof:.2%}")
     print(f"worst FK residual of the chosen 5-DOF solutions {worst:.2e}; poses without a 5-DOF solution: {unsolved}")
-    if args.json:
-        with open(args.json, "w") as stream:
-            json.dump(result.as_json(), stream, indent=2)
-        print(f"wrote {args.json}")
-    if args.plot:
-        from carmkin import plots
+    write_json(args, result.as_json())
+    if args.png:
+        from carmkin.studies import figures
 
-        plots.workspace_excess(result, args.plot)
-        print(f"wrote {args.plot}")
+        figures.workspace_excess(result, args.png)
+        print(f"wrote {args.png}")
     return 0

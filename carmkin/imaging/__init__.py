@@ -1,8 +1,6 @@
-"""The imaging application: the pinhole model of the X-ray source and detector (:mod:`.camera`),
-parallax-free panoramas (:mod:`.panorama`) and the marker phantom (:mod:`.phantom`).
-
-``carmkin.imaging.<name>`` reaches the camera functions directly (numpy only); the planner and the phantom
-load on first use.
+"""The imaging geometry: the pinhole model of the X-ray source and detector (:mod:`.camera`) and the
+projection matrix of a configuration (:mod:`.projection`), numpy only. The panorama planner that uses them is
+a planner of its own, :mod:`carmkin.panorama`.
 """
 
 from .camera import (

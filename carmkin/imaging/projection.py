@@ -15,6 +15,8 @@ PS3.17 FFF.1.2.2.2 ("Options for patient position on the X-Ray table"): e.g. HFS
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from carmkin.imaging.camera import ImagingError, _intrinsics
@@ -23,6 +25,10 @@ from carmkin.transforms import check_rigid_transform, inverse
 from carmkin.validation import instance, real_array, rigid_transform
 from carmkin.validation import intrinsics as check_intrinsics
 from carmkin.validation import projection_matrix as check_projection_matrix
+
+#: Largest natural logarithm of ``|t|`` :func:`pose_from_projection` accepts (a tenth of float64's largest
+#: number, so that ``R @ t`` and the pose's products stay finite).
+MAX_LOG_TRANSLATION = math.log(np.finfo(float).max / 10)
 
 #: Patient axes (Left, Posterior, Head) as direction cosines in the table frame, per patient position
 #: (DICOM PS3.17 FFF.1.2.2.2 table; codes of Patient Position (0018,5100)).
@@ -107,10 +113,29 @@ def pose_from_projection(P) -> tuple[np.ndarray, np.ndarray]:
     K = K / scale
     K[1, 0] = K[2, 0] = K[2, 1] = 0.0  # exact zeros of the triangular factor
     K[2, 2] = 1.0
-    with np.errstate(all="ignore"):
-        t = np.linalg.solve(K, P[:, 3]) / scale
+    K = check_intrinsics(K, "intrinsics of P", error=ImagingError)
     T = np.eye(4)
     T[:3, :3] = R.T
-    T[:3, 3] = -R.T @ t
-    K = check_intrinsics(K, "intrinsics of P", error=ImagingError)
+    T[:3, 3] = -R.T @ _translation(K, P[:, 3], scale)
     return K, rigid_transform(T, "source pose of P", error=ImagingError)
+
+
+def _translation(K: np.ndarray, column: np.ndarray, scale: float) -> np.ndarray:
+    """``t = K⁻¹ column / scale`` of ``P = scale · K [R | t]``, or :class:`ImagingError` when ``|t|`` is beyond
+    float64 (a finite P whose last column is ~1e300 times its left block: no pose has such a source centre).
+
+    The solve runs on the column divided by its largest entry and the size is checked in logarithms, so no
+    intermediate overflows (before: ``inf`` entries and a NaN centre with a RuntimeWarning)."""
+    size = float(np.abs(column).max())
+    if size == 0.0:
+        return np.zeros(3)
+    direction = np.linalg.solve(K, column / size)
+    length = float(np.linalg.norm(direction))
+    if length == 0.0:
+        return np.zeros(3)
+    log_length = math.log(length) + math.log(size) - math.log(abs(scale))
+    if log_length > MAX_LOG_TRANSLATION:
+        raise ImagingError(f"P: the source centre lies ~1e{log_length / math.log(10):.0f} "
+                           "world units from the origin, beyond float64: expected a projection matrix of a pose "
+                           "with a finite source position")
+    return (direction * size) / scale

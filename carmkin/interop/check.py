@@ -11,7 +11,7 @@ import math
 import numpy as np
 
 from carmkin import analytic_ik, imaging
-from carmkin.imaging.panorama import pose_residual as pose_error
+from carmkin.transforms import pose_residual as pose_error
 from carmkin.imaging.projection import PATIENT_POSITIONS
 from carmkin.interop import dicom, simulators
 from carmkin.model.sampling import random_configurations, random_system

@@ -18,7 +18,8 @@ Frames (DICOM PS3.3 C.8.19.6.13.1 and PS3.17 Z / FFF.1.2):
   Ap1 (about Z, "from −Y to +X is positive"): −Y is the beam's direction (source → detector) at rest, so the
   detector moves towards +X as Ap1 grows. The signs of Ap2 and Ap3 have two readings of the standard's text
   (:data:`CONVENTIONS`; docs/interop.md quotes the text): every function that turns angles into a matrix or
-  back takes ``convention`` — ``"beam"`` (default) or ``"literal"``.
+  back takes ``convention`` — ``"beam"`` (default), ``"literal"``, or either reading for Ap2 and Ap3 apart
+  (``"literal-ap2"`` = ``"pyskindose"``, ``"literal-ap3"``, or a pair of readings).
 - **Our source frame in positioner axes**: x = −Xp, y = −Zp, z = −Yp (z from source to detector). A DICOM
   image, viewed towards the source, is the mirror of our pinhole image: DICOM column ``c = (W − 1) − u``,
   row ``r = v``; with Ap3 = 0, an AP view of an HFS patient shows the patient's left on the image right and
@@ -72,7 +73,15 @@ ISOCENTER_IN_FRAME2 = np.array([[0.0, 0.0, -1.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0
 #: - ``"literal"``: "(i.e., Yp)" taken as the vector isocentre → source: Ap2 > 0 tilts the *source* towards
 #:   +Z (PySkinDose since commit 0876162); Ap3 > 0 turns the detector clockwise as seen from the source,
 #:   facing on to the detector's entrance plane.
-CONVENTIONS: dict[str, tuple[float, float]] = {"beam": (1.0, 1.0), "literal": (-1.0, -1.0)}
+#:
+#: The two ambiguities are independent (one is about Ap2's direction, the other about the side Ap3 is seen
+#: from), so every combination has a name: ``"literal-ap2"`` reads Ap2 literally and Ap3 as the beam does
+#: (PySkinDose's reading, also named ``"pyskindose"``), ``"literal-ap3"`` the other way round; a pair of
+#: readings ``(ap2, ap3)``, each ``"beam"`` or ``"literal"``, is accepted too.
+READINGS: dict[str, float] = {"beam": 1.0, "literal": -1.0}
+CONVENTIONS: dict[str, tuple[float, float]] = {"beam": (1.0, 1.0), "literal": (-1.0, -1.0),
+                                               "literal-ap2": (-1.0, 1.0), "literal-ap3": (1.0, -1.0),
+                                               "pyskindose": (-1.0, 1.0)}
 DEFAULT_CONVENTION = "beam"
 
 #: Valid ranges (deg) of the angles, PS3.3 C.8.7.5.1.2 and C.8.19.6.13.1.2 (primary −180…180, secondary
@@ -89,11 +98,15 @@ GIMBAL_TOLERANCE = 1e-12
 
 
 def check_convention(convention) -> tuple[float, float]:
-    """The signs (Ap2, Ap3) of a convention name, or :class:`DicomGeometryError` naming the choices."""
-    if not isinstance(convention, str) or convention not in CONVENTIONS:
-        raise DicomGeometryError(f"convention must be one of {', '.join(map(repr, CONVENTIONS))}, "
-                                 f"got {validation._describe(convention)}")
-    return CONVENTIONS[convention]
+    """The signs (Ap2, Ap3) of a convention name or of a pair of readings ``(ap2, ap3)``, or
+    :class:`DicomGeometryError` naming the choices."""
+    if isinstance(convention, str) and convention in CONVENTIONS:
+        return CONVENTIONS[convention]
+    if (isinstance(convention, tuple) and len(convention) == 2
+            and all(isinstance(r, str) and r in READINGS for r in convention)):
+        return READINGS[convention[0]], READINGS[convention[1]]
+    raise DicomGeometryError(f"convention must be one of {', '.join(map(repr, CONVENTIONS))} or a pair of readings "
+                             f"(ap2, ap3) of {', '.join(map(repr, READINGS))}, got {validation._describe(convention)}")
 
 
 def angle(value, name: str, bounds: tuple[float, float]) -> float:

@@ -1,5 +1,6 @@
-"""Read and write the geometry of XA and Enhanced XA datasets with pydicom (the ``dicom`` extra), and find
-the joint and table moves that give the view of a DICOM image through :func:`carmkin.qp_ik.solve`.
+"""Read and write the geometry of XA and Enhanced XA datasets with pydicom (the ``dicom`` extra). The joint
+and table moves that give the view of a DICOM image are the repositioning planner's
+(:func:`carmkin.reposition.dicom.moves_for_dataset`).
 
 Written datasets are synthetic and carry geometry only (no pixel data): enough for a reader of the geometry
 attributes and for round-trip tests. Attribute keywords are pydicom's (PS3.6 names without spaces).
@@ -19,6 +20,7 @@ from carmkin.interop import dicom
 from carmkin.errors import DicomAttributeError
 from carmkin.interop.dicom import MM, DicomGeometryError
 from carmkin.interop.dicom_attributes import (
+    _error,
     check_dataset,
     read_number,
     read_patient_position,
@@ -68,7 +70,9 @@ def write_xa(system, q, patient_position: str = "HFS", patient_origin=(0.0, 0.0,
              source_to_isocenter: float | None = None):
     """A synthetic XA dataset of the image at ``q``: Positioner Primary/Secondary Angle (patient-based, for
     the patient placed by ``patient_position`` and ``patient_origin`` (m, table frame)), Patient Position,
-    Distance Source to Detector / to Patient (the isocentre, default the orbital offset, m), pixel spacing."""
+    Distance Source to Detector / to Isocenter (default the orbital offset, m), pixel spacing. Distance Source to
+    Patient (0018,1111) is not written: the standard defines it as the distance to the table or support nearest
+    the patient, which the model does not know."""
     code = _position_code(patient_position)
     origin = validation.real_array(patient_origin, "patient_origin", (3,), error=DicomGeometryError, unit="m")
     q = dicom._configuration(system, q)
@@ -79,7 +83,7 @@ def write_xa(system, q, patient_position: str = "HFS", patient_origin=(0.0, 0.0,
     ds.PatientPosition = code
     ds.PositionerPrimaryAngle = round(primary, 6)
     ds.PositionerSecondaryAngle = round(secondary, 6)
-    ds.DistanceSourceToPatient = iso * MM
+    ds.DistanceSourceToIsocenter = iso * MM
     return ds
 
 
@@ -181,12 +185,16 @@ class DicomView:
 
 
 def view_from_dataset(ds, isocenter=None, patient_origin=(0.0, 0.0, 0.0), *, frame: int = 0,
-                      patient_position: str | None = None, convention: str = dicom.DEFAULT_CONVENTION) -> DicomView:
+                      patient_position: str | None = None, convention: str = dicom.DEFAULT_CONVENTION,
+                      source_to_isocenter: float | None = None) -> DicomView:
     """The source pose of a dataset: from the Isocenter Reference System when the dataset has functional
     groups (Enhanced XA; ``frame`` and ``convention`` as in :func:`read_isocenter_geometry`), else from the
     patient-based XA angles, which need the ``isocenter`` (3,) in the table frame (m) — the point the beam
     passed through, e.g. the anatomy of interest; default: the patient origin — and the Patient Position: the
-    dataset's, or ``patient_position`` where the dataset has none (never assumed)."""
+    dataset's, or ``patient_position`` where the dataset has none (never assumed) — and the source–isocentre
+    distance: Distance Source to Isocenter (0018,9402), or ``source_to_isocenter`` (m) where the dataset has
+    none (never Distance Source to Patient (0018,1111): the standard defines it as the distance to the table or
+    support nearest the patient)."""
     check_dataset(ds)
     enhanced = str(ds.get("SOPClassUID", "")) == ENHANCED_XA_SOP_CLASS
     if enhanced or "SharedFunctionalGroupsSequence" in ds or "PerFrameFunctionalGroupsSequence" in ds:
@@ -201,22 +209,18 @@ def view_from_dataset(ds, isocenter=None, patient_origin=(0.0, 0.0, 0.0), *, fra
     T_patient = dicom.patient_pose(read_patient_position(ds, patient_position), origin)
     isocenter = T_patient[:3, 3] if isocenter is None else isocenter
     primary, secondary = read_number(ds, "PositionerPrimaryAngle"), read_number(ds, "PositionerSecondaryAngle")
-    distance = read_number(ds, "DistanceSourceToPatient") / MM
+    distance = _source_to_isocenter(ds, source_to_isocenter)
     pose = dicom.pose_from_xa_angles(primary, secondary, isocenter, distance, T_patient, convention=convention)
     return DicomView(pose, "XA positioner angles", full_pose=False)
 
 
-def moves_for_dataset(system, ds, q_current=None, isocenter=None, patient_origin=(0.0, 0.0, 0.0), *,
-                      frame: int = 0, patient_position: str | None = None, convention: str = dicom.DEFAULT_CONVENTION,
-                      **solve_kwargs):
-    """``(view, result)``: the dataset's view (:func:`view_from_dataset`, same arguments) and the
-    :func:`carmkin.qp_ik.solve` result reaching it from ``q_current`` (joints and table joints;
-    ``result.q − q_current`` are the moves). An Enhanced XA view is a full pose; XA angles fix the source
-    position and the beam, the rotation about the beam stays free (:class:`carmkin.qp_ik.AxisTarget`)."""
-    from carmkin import qp_ik
+def _source_to_isocenter(ds, given) -> float:
+    """The source–isocentre distance (m) of a plain XA dataset: its Distance Source to Isocenter, else ``given``."""
+    if "DistanceSourceToIsocenter" in ds:
+        return read_number(ds, "DistanceSourceToIsocenter") / MM
+    if given is not None:
+        return validation.distance(given, "source_to_isocenter", error=DicomGeometryError)
+    raise _error("DistanceSourceToIsocenter", "is required, the dataset has none (Distance Source to Patient "
+                 "(0018,1111) is the distance to the table or support nearest the patient, not to the isocentre: "
+                 "pass source_to_isocenter= in m)")
 
-    dicom._system(system)
-    view = view_from_dataset(ds, isocenter, patient_origin, frame=frame, patient_position=patient_position,
-                             convention=convention)
-    target = view.pose if view.full_pose else qp_ik.AxisTarget(tuple(view.pose[:3, 3]), tuple(view.pose[:3, 2]))
-    return view, qp_ik.solve(system, target, q_current=q_current, **solve_kwargs)

@@ -1,4 +1,4 @@
-"""Camera conventions of three X-ray simulators (DeepDRR, DiffDRR, nanodrr), as pure numpy functions.
+"""Camera conventions of X-ray simulators (DeepDRR, DiffDRR, nanodrr, xvr, flashdrr), as pure numpy functions.
 
 Our side (``carmkin.imaging``): the source pose ``T`` (4, 4) is camera-to-world, camera frame =
 ``xray_source`` (x along columns, y along rows, z towards the detector), ``K`` in pixels with pixel centres
@@ -26,6 +26,16 @@ at integer coordinates. Simulators work in millimetres and, all three, put pixel
   Rz(90°)·T(0, −h, v) · arm_from_device`` (``rotate_camera_left``), h = source-to-isocenter horizontal offset,
   v = source-to-isocenter vertical distance. Our chain with ``a1 = 0`` is that device (see
   :func:`deepdrr_mobile_carm`).
+- **xvr** (eigenvivek/xvr, ``src/xvr/model/sampler.py: get_random_pose``) samples poses as nanodrr's
+  ``make_rt_inv(rotation, translation, orientation, isocenter)`` (``nanodrr/camera/extrinsics.py``):
+  ``rt_inv = [R | R t + iso] · reorient(orientation)``, R the intrinsic ZXY Euler angles (deg), t the camera
+  centre (mm) in the rotated frame; our pose is nanodrr's ``rt_inv``, so :func:`xvr_pose` reads it back
+  (tested against nanodrr's own function when installed).
+- **flashdrr** (pcarnah/flashdrr, ``flashdrr/rendering/raycast.py``): a camera-to-world view matrix in the CT's
+  RAS world (mm) with the columns [right, up, forward, position] (``get_vtk_view_mat``) — our x, −y, z (det
+  −1) —, pixel rays ``(x tan(fov/2)·W/H, −y tan(fov/2), 1)`` over ``x, y ∈ linspace(−1, 1)`` (``set_fov``:
+  principal point at the image centre, vertical field of view), and C-arm parameters (SID, AP angle + caudal,
+  lateral angle + RAO, table SI; ``carm_to_camera_params``). Its pixel centres are at integers, like ours.
 
 Every function here is its own inverse partner and is tested by round trips; none imports a simulator.
 """
@@ -284,3 +294,154 @@ def deepdrr_mobile_carm(system, q) -> MobileCArmState:
         source_to_isocenter_horizontal_offset=carm.a2 * MM,
         source_to_detector_distance=carm.source_to_detector * MM,
     )
+
+
+# --- xvr (nanodrr.camera.make_rt_inv) --------------------------------------------------------------------
+#: xvr's fixed reorientation per acquisition orientation (``nanodrr/camera/extrinsics.py``:
+#: ``_ORIENTATION_MATRICES``): ``rt_inv = pose @ reorient``.
+XVR_ORIENTATIONS = {
+    "AP": np.array([[-1.0, 0, 0, 0], [0, 0, -1, 0], [0, -1, 0, 0], [0, 0, 0, 1]]),
+    "PA": np.array([[-1.0, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 0], [0, 0, 0, 1]]),
+    None: np.array([[-1.0, 0, 0, 0], [0, -1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]),
+}
+#: Below this |cos β| (ZXY's middle angle at ±90°) the first and last angles are one: γ is reported as 0.
+EULER_GIMBAL_TOLERANCE = 1e-12
+
+
+def _xvr_orientation(orientation) -> np.ndarray:
+    if not (orientation is None or isinstance(orientation, str)) or orientation not in XVR_ORIENTATIONS:
+        raise SimulatorConventionError(f"orientation must be 'AP', 'PA' or None, got {orientation!r}")
+    if orientation == "PA":  # det −1: nanodrr's PA camera is a mirror image of a right-handed one
+        raise SimulatorConventionError("xvr's 'PA' reorientation is a reflection (det −1): its images are mirrored "
+                                       "and no rigid source pose gives them; use 'AP' or None")
+    return XVR_ORIENTATIONS[orientation]
+
+
+def euler_zxy(angles_deg) -> np.ndarray:
+    """Rotation (3, 3) of intrinsic ZXY Euler angles (α, β, γ) (deg): ``Rz(α) Rx(β) Ry(γ)`` (scipy and roma's
+    ``"ZXY"``)."""
+    a, b, c = np.radians(real_array(angles_deg, "rotation_deg", (3,), error=SimulatorConventionError, unit="deg"))
+    return _rot(2, a) @ _rot(0, b) @ _rot(1, c)
+
+
+def euler_zxy_angles(R) -> np.ndarray:
+    """Intrinsic ZXY Euler angles (3,) (deg) of a rotation (3, 3): β in [−90°, 90°], α and γ in (−180°, 180°]."""
+    R = real_array(R, "R", (3, 3), error=SimulatorConventionError)
+    b = np.arcsin(np.clip(R[2, 1], -1.0, 1.0))
+    if np.cos(b) < EULER_GIMBAL_TOLERANCE:
+        return np.degrees([np.arctan2(R[1, 0], R[0, 0]), b, 0.0])
+    return np.degrees([np.arctan2(-R[0, 1], R[1, 1]), b, np.arctan2(-R[2, 0], R[2, 2])])
+
+
+def xvr_pose(T_mm, orientation: str | None = "AP", isocenter_mm=(0.0, 0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
+    """``(rotation_deg, translation_mm)``: xvr's pose parameters (``nanodrr.camera.make_rt_inv``: ZXY Euler
+    angles in degrees and the camera centre in the rotated frame relative to ``isocenter_mm``) of our source
+    pose ``T_mm`` in the volume's world (mm) — nanodrr's ``rt_inv``, as is. Inverse: :func:`from_xvr_pose`."""
+    T = check_rigid_transform(T_mm, "source pose (mm)")
+    iso = real_array(isocenter_mm, "isocenter_mm", (3,), error=SimulatorConventionError, unit="mm")
+    R = T[:3, :3] @ _xvr_orientation(orientation)[:3, :3].T
+    return euler_zxy_angles(R), R.T @ (T[:3, 3] - iso)
+
+
+def from_xvr_pose(rotation_deg, translation_mm, orientation: str | None = "AP",
+                  isocenter_mm=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """Our source pose (4, 4, mm, the volume's world) from xvr's pose parameters (inverse of :func:`xvr_pose`)."""
+    iso = real_array(isocenter_mm, "isocenter_mm", (3,), error=SimulatorConventionError, unit="mm")
+    t = real_array(translation_mm, "translation_mm", (3,), error=SimulatorConventionError, unit="mm")
+    pose = np.eye(4)
+    pose[:3, :3] = euler_zxy(rotation_deg)
+    pose[:3, 3] = pose[:3, :3] @ t + iso
+    return pose @ _xvr_orientation(orientation)
+
+
+# --- flashdrr (flashdrr.rendering.raycast) ---------------------------------------------------------------
+#: flashdrr's view matrix (``get_vtk_view_mat``) has the columns [right, up, forward, position] in RAS mm:
+#: our x, −y, z (det −1, VTK's camera with the forward axis as +Z). Its own inverse.
+FLASHDRR_FLIP = np.diag([1.0, -1.0, 1.0, 1.0])
+#: flashdrr puts the principal point at the image centre; ours may be off it by this much (px), at most.
+FLASHDRR_CENTRE_TOLERANCE_PX = 1e-6
+
+
+def flashdrr_view_matrix(T_mm) -> np.ndarray:
+    """flashdrr's camera-to-world view matrix (4, 4, RAS mm; det −1) of our source pose in the CT's world."""
+    return check_rigid_transform(T_mm, "source pose (mm)") @ FLASHDRR_FLIP
+
+
+def from_flashdrr_view_matrix(view) -> np.ndarray:
+    """Our source pose (4, 4, mm) from flashdrr's view matrix (inverse of :func:`flashdrr_view_matrix`)."""
+    M = real_array(view, "view", (4, 4), error=SimulatorConventionError)
+    return check_rigid_transform(M @ FLASHDRR_FLIP, "view · diag(1, −1, 1, 1)")
+
+
+def flashdrr_fov_deg(K, size) -> float:
+    """flashdrr's vertical field of view (deg) for our ``K`` and ``size`` (columns, rows): its rays through
+    pixel row i run at ``(−1 + 2i/(H−1)) tan(fov/2)`` (``VolumeRaycaster.set_fov``), so ``fy = (H−1) /
+    (2 tan(fov/2))`` with the principal point at the image centre ((W−1)/2, (H−1)/2). flashdrr's column focal
+    length is then ``fy (W−1) H / ((H−1) W)``, not ours unless W = H: :func:`intrinsics_from_flashdrr` gives the
+    K it renders with. Refuses a K whose principal point is off the centre."""
+    K = intrinsics(K, "K", error=SimulatorConventionError)
+    columns, rows = _size(size)
+    centre = np.array([(columns - 1) / 2, (rows - 1) / 2])
+    if np.max(np.abs(K[:2, 2] - centre)) > FLASHDRR_CENTRE_TOLERANCE_PX:
+        raise SimulatorConventionError(f"flashdrr puts the principal point at the image centre {centre.tolist()} px; "
+                                       f"K has it at {K[:2, 2].tolist()} px")
+    return float(np.degrees(2.0 * np.arctan((rows - 1) / (2.0 * K[1, 1]))))
+
+
+def intrinsics_from_flashdrr(fov_deg, size) -> np.ndarray:
+    """The K (px, centres at integers) flashdrr renders with for a vertical ``fov_deg`` and ``size``."""
+    fov = np.radians(real_scalar(fov_deg, "fov_deg", error=SimulatorConventionError, low=1e-6, high=179.0,
+                                 unit="deg"))
+    columns, rows = _size(size)
+    if min(columns, rows) < 2:
+        raise SimulatorConventionError(f"flashdrr needs at least 2x2 pixels, got {columns}x{rows}")
+    tan = np.tan(fov / 2.0)
+    return np.array([[(columns - 1) / (2.0 * tan * columns / rows), 0.0, (columns - 1) / 2.0],
+                     [0.0, (rows - 1) / (2.0 * tan), (rows - 1) / 2.0], [0.0, 0.0, 1.0]])
+
+
+def _flashdrr_rotation(ap_deg: float, lat_deg: float) -> np.ndarray:
+    return _rot(0, np.radians(ap_deg)) @ _rot(2, np.radians(lat_deg))  # R_ap · R_lat (carm_to_camera_params)
+
+
+def flashdrr_carm_pose(sid_mm, ap_deg, lat_deg, center_ras_mm, table_si_mm=0.0) -> np.ndarray:
+    """Our source pose (4, 4, RAS mm) of flashdrr's C-arm parameters (``carm_to_camera_params``): the source
+    at ``R_ap R_lat (0, −sid, 0)`` from the centre moved by ``table_si_mm`` along S, looking at it, the view-up
+    ``R_ap R_lat (0, 0, 1)``; ``ap_deg`` + caudal, ``lat_deg`` + RAO (source to the patient's right)."""
+    sid = distance(sid_mm, "sid_mm", error=SimulatorConventionError, low=MIN_MM, high=MAX_MM, unit="mm")
+    ap = real_scalar(ap_deg, "ap_deg", error=SimulatorConventionError, low=-180.0, high=180.0, unit="deg")
+    lat = real_scalar(lat_deg, "lat_deg", error=SimulatorConventionError, low=-180.0, high=180.0, unit="deg")
+    centre = real_array(center_ras_mm, "center_ras_mm", (3,), error=SimulatorConventionError, unit="mm")
+    si = real_scalar(table_si_mm, "table_si_mm", error=SimulatorConventionError, low=-MAX_MM, high=MAX_MM, unit="mm")
+    R = _flashdrr_rotation(ap, lat)
+    forward, up = R @ np.array([0.0, 1.0, 0.0]), R @ np.array([0.0, 0.0, 1.0])
+    T = np.eye(4)
+    T[:3, :3] = np.column_stack((np.cross(forward, up), -up, forward))
+    T[:3, 3] = centre + np.array([0.0, 0.0, si]) - sid * forward
+    return T
+
+
+#: A pose is a flashdrr C-arm pose when its rebuilt pose matches it to this (rotation: rad; position: mm).
+FLASHDRR_POSE_TOLERANCE = 1e-9
+
+
+def flashdrr_carm_parameters(T_mm, center_ras_mm) -> tuple[float, float, float, float]:
+    """``(sid_mm, ap_deg, lat_deg, table_si_mm)`` of our source pose (RAS mm) for flashdrr's C-arm around
+    ``center_ras_mm`` (inverse of :func:`flashdrr_carm_pose`); refuses a pose that is not one (its beam missing
+    the centre's S line, or its roll not flashdrr's)."""
+    T = check_rigid_transform(T_mm, "source pose (mm)")
+    centre = real_array(center_ras_mm, "center_ras_mm", (3,), error=SimulatorConventionError, unit="mm")
+    z = T[:3, 2]
+    w = centre - T[:3, 3]
+    if abs(z[0]) + abs(z[1]) < EULER_GIMBAL_TOLERANCE:
+        raise SimulatorConventionError("the beam runs along S: flashdrr's C-arm cannot take it")
+    sid = float(w[:2] @ z[:2] / (z[:2] @ z[:2]))
+    si = float(T[2, 3] + sid * z[2] - centre[2])
+    lat = float(np.degrees(np.arcsin(np.clip(-z[0], -1.0, 1.0))))
+    ap = float(np.degrees(np.arctan2(z[2], z[1])))
+    rebuilt = flashdrr_carm_pose(sid, ap, lat, centre, si) if sid > 0 else None
+    if rebuilt is None or np.max(np.abs(rebuilt[:3, :3] - T[:3, :3])) > FLASHDRR_POSE_TOLERANCE or \
+            np.max(np.abs(rebuilt[:3, 3] - T[:3, 3])) > FLASHDRR_POSE_TOLERANCE * max(1.0, sid):
+        raise SimulatorConventionError("the pose is not one of flashdrr's C-arm (beam through the centre's S line, "
+                                       "view-up R_ap R_lat (0, 0, 1))")
+    return sid, ap, lat, si

@@ -153,30 +153,30 @@ class ClosedFormFK:
         self._R_rows = tuple(tuple(float(v) for v in r) for r in self.R)
         self._p = tuple(float(v) for v in self.p)
 
+    def rows(self, d0: float, d1: float, t2: float, d3: float, t4: float, t5: float) -> list[float]:
+        """``0T_xray`` row-major as 16 Python floats (its last row 0, 0, 0, 1) for one configuration on plain
+        floats (no numpy: the scalar path costs a few µs); no validation (callers validate)."""
+        c2, s2, c4, s4, c5, s5 = math.cos(t2), math.sin(t2), math.cos(t4), math.sin(t4), math.cos(t5), math.sin(t5)
+        c2s4, s2s4 = c2 * s4, s2 * s4
+        x0, x1, x2 = -c2 * c4, -s2 * c4, s4
+        y0, y1, y2 = c2s4 * s5 + s2 * c5, s2s4 * s5 - c2 * c5, c4 * s5
+        z0, z1, z2 = c2s4 * c5 - s2 * s5, s2s4 * c5 + c2 * s5, c4 * c5
+        m, a1, L, a2 = self.M + d3, self.a1, self.L, self.a2
+        p0 = a1 * c2s4 - m * s2 - (L * z0 + a2 * y0)
+        p1 = a1 * s2s4 + m * c2 - (L * z1 + a2 * y1)
+        p2 = a1 * c4 + d1 - (L * z2 + a2 * y2)
+        (ra, rb, rc), (rd, re, rf), (rg, rh, ri) = self._R_rows
+        px, py, pz = self._p
+        return [ra * x0 + rb * x1 + rc * x2, ra * y0 + rb * y1 + rc * y2, ra * z0 + rb * z1 + rc * z2,
+                ra * p0 + rb * p1 + rc * p2 + px,
+                rd * x0 + re * x1 + rf * x2, rd * y0 + re * y1 + rf * y2, rd * z0 + re * z1 + rf * z2,
+                rd * p0 + re * p1 + rf * p2 + py,
+                rg * x0 + rh * x1 + ri * x2, rg * y0 + rh * y1 + ri * y2, rg * z0 + rh * z1 + ri * z2,
+                rg * p0 + rh * p1 + ri * p2 + pz + d0, 0.0, 0.0, 0.0, 1.0]
+
     def pose(self, q) -> np.ndarray:
         """``0T_xray`` (4, 4) for one configuration (6,), no validation (callers validate)."""
-        d0, d1, t2, d3, t4, t5 = q
-        c2, s2, c4, s4, c5, s5 = math.cos(t2), math.sin(t2), math.cos(t4), math.sin(t4), math.cos(t5), math.sin(t5)
-        X = (-c2 * c4, -s2 * c4, s4)
-        Y = (c2 * s4 * s5 + s2 * c5, s2 * s4 * s5 - c2 * c5, c4 * s5)
-        Z = (c2 * s4 * c5 - s2 * s5, s2 * s4 * c5 + c2 * s5, c4 * c5)
-        m, a1, L, a2 = self.M + d3, self.a1, self.L, self.a2
-        p = (-m * s2 + a1 * c2 * s4 - L * Z[0] - a2 * Y[0],
-             m * c2 + a1 * s2 * s4 - L * Z[1] - a2 * Y[1],
-             a1 * c4 - L * Z[2] - a2 * Y[2])
-        (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = self._R_rows
-        px, py, pz = self._p
-        out = np.empty((4, 4))
-        for i, (ra, rb, rc) in enumerate(((r00, r01, r02), (r10, r11, r12), (r20, r21, r22))):
-            out[i, 0] = ra * X[0] + rb * X[1] + rc * X[2]
-            out[i, 1] = ra * Y[0] + rb * Y[1] + rc * Y[2]
-            out[i, 2] = ra * Z[0] + rb * Z[1] + rc * Z[2]
-            out[i, 3] = ra * p[0] + rb * p[1] + rc * (p[2] + d1)
-        out[0, 3] += px
-        out[1, 3] += py
-        out[2, 3] += pz + d0
-        out[3] = (0.0, 0.0, 0.0, 1.0)
-        return out
+        return np.array(self.rows(*(q.tolist() if isinstance(q, np.ndarray) else q))).reshape(4, 4)
 
     def poses(self, q: np.ndarray) -> np.ndarray:
         """``0T_xray`` (N, 4, 4) for configurations (N, 6), vectorized."""

@@ -11,6 +11,7 @@ import numpy as np
 
 from carmkin.errors import InvalidParameterError
 from carmkin.transforms import translation
+from carmkin.validation import JOINT_VALUE_LIMIT, plain_floats
 
 from . import kinematics
 from .bounds import check_joint_limits
@@ -147,10 +148,36 @@ class CArmSystem:
         return kinematics.ClosedFormFK(self.carm, self.setup)
 
     def fk(self, q) -> np.ndarray:
-        """Pose of ``xray_source`` in the table frame: (4, 4) for q of shape (nq,), (N, 4, 4) for (N, nq)."""
+        """Pose of ``xray_source`` in the table frame: (4, 4) for q of shape (nq,), (N, 4, 4) for (N, nq).
+
+        One configuration of plain floats (a float64 array or a list of floats) takes the scalar path on
+        Python floats (:meth:`ClosedFormFK.rows <carmkin.model.kinematics.ClosedFormFK.rows>`, a few µs);
+        anything else is checked in full (:func:`~carmkin.model.kinematics.check_configuration`); batches
+        are vectorized."""
+        values = plain_floats(q, self.nq, JOINT_VALUE_LIMIT)
+        if values is not None:
+            return np.array(self._fk_rows(values)).reshape(4, 4)
         if self.table.joints:
             return self._with_table_joints(q, self._fk6)
         return self._fk6(kinematics.check_configuration(q))
+
+    def _fk_rows(self, values: list[float]) -> list[float]:
+        """The pose row-major (16 floats) for one configuration of Python floats:
+        ``Tz(d0) · E(q_table) · P(q6 with d0 = 0)`` with a motorized table, as :meth:`_with_table_joints`."""
+        steps = self._table_steps
+        if not steps:
+            return self.closed_form.rows(*values)
+        rows = self.closed_form.rows(0.0, *values[1 + len(steps):])
+        for joint, index in steps:
+            joint.apply_inverse_motion(rows, values[index])
+        rows[11] += values[0]
+        return rows
+
+    @cached_property
+    def _table_steps(self) -> tuple:
+        """``(joint, index in q)`` of the extra table joints in the order the scalar FK applies them: from
+        the floor up (the last of the chain first)."""
+        return tuple(reversed([(joint, 1 + i) for i, joint in enumerate(self.table.joints)]))
 
     def _fk6(self, q6: np.ndarray) -> np.ndarray:
         return self.closed_form.pose(q6) if q6.ndim == 1 else self.closed_form.poses(q6)
@@ -164,7 +191,7 @@ class CArmSystem:
     # --- generated descriptions ----------------------------------------------------------------------
     def urdf(self) -> str:
         """URDF text of the chain, generated from ``urdf/carm_table.urdf.xacro`` with this system's numbers."""
-        from carmkin.robot.urdf import urdf_text
+        from carmkin.model.urdf import urdf_text
 
         return urdf_text(self)
 
@@ -178,7 +205,7 @@ class CArmSystem:
 
     @cached_property
     def _pinocchio_models(self):
-        from carmkin.robot.models import build_models
+        from carmkin.model.urdf import build_models
 
         return build_models(self.urdf())
 

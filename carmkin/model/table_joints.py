@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -73,6 +74,58 @@ class TableJoint:
         out[:3, :3] = R
         out[:3, 3] = c - R @ c
         return out
+
+    @cached_property
+    def _coordinate_axis(self) -> tuple[int, int, float, float, float] | None:
+        """``(4 j, 4 k, point_j, point_k, σ)`` when the axis is exactly σ·e_i, (i, j, k) a cyclic order of
+        0, 1, 2 (the rows j and k turn, offsets in a row-major 4x4), else None."""
+        for i in range(3):
+            j, k = (i + 1) % 3, (i + 2) % 3
+            if abs(self.axis[i]) == 1.0 and self.axis[j] == 0.0 and self.axis[k] == 0.0:
+                return 4 * j, 4 * k, self.point[j], self.point[k], self.axis[i]
+        return None  # (a unit axis may have a component that rounds to ±1 beside tiny others: not this case)
+
+    def apply_inverse_motion(self, rows: list[float], value: float) -> list[float]:
+        """``e^{-ξ q} · B`` in place for a rigid transform B given row-major (its first 12 Python floats,
+        the top three rows, are read and written): the scalar FK path of :meth:`inverse_motion`, on plain floats. A rotation about a
+        coordinate axis (the standard joints) turns two rows only."""
+        if self.prismatic:  # the origin moves by −q u
+            ux, uy, uz = self.axis
+            rows[3] -= value * ux
+            rows[7] -= value * uy
+            rows[11] -= value * uz
+            return rows
+        c, s = math.cos(value), math.sin(value)
+        plane = self._coordinate_axis
+        if plane is not None:  # rotation by −σ q about e_i through the point: rows j and k turn
+            j, k, pj, pk, sign = plane
+            s = -sign * s
+            a0, a1, a2, a3 = rows[j:j + 4]
+            b0, b1, b2, b3 = rows[k:k + 4]
+            a3, b3 = a3 - pj, b3 - pk
+            rows[j:j + 4] = c * a0 - s * b0, c * a1 - s * b1, c * a2 - s * b2, c * a3 - s * b3 + pj
+            rows[k:k + 4] = s * a0 + c * b0, s * a1 + c * b1, s * a2 + c * b2, s * a3 + c * b3 + pk
+            return rows
+        # any axis: R = I − s K + (1 − cos) K², K = skew(u), K² = u uᵀ − I, written out
+        ux, uy, uz = self.axis
+        cx, cy, cz = self.point
+        rows[3] -= cx
+        rows[7] -= cy
+        rows[11] -= cz
+        v = 1.0 - c
+        xy, xz, yz = v * ux * uy, v * ux * uz, v * uy * uz
+        R = (c + v * ux * ux, s * uz + xy, -s * uy + xz,
+             -s * uz + xy, c + v * uy * uy, s * ux + yz,
+             s * uy + xz, -s * ux + yz, c + v * uz * uz)
+        for m in range(4):
+            b0, b1, b2 = rows[m], rows[4 + m], rows[8 + m]
+            rows[m] = R[0] * b0 + R[1] * b1 + R[2] * b2
+            rows[4 + m] = R[3] * b0 + R[4] * b1 + R[5] * b2
+            rows[8 + m] = R[6] * b0 + R[7] * b1 + R[8] * b2
+        rows[3] += cx
+        rows[7] += cy
+        rows[11] += cz
+        return rows
 
 
 def standard_joints(ranges: dict[str, JointRange], up, pivot) -> tuple[TableJoint, ...]:

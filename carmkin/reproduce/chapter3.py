@@ -1,6 +1,6 @@
 """Chapter 3's quantitative stitching results (Tables 3.1 and 3.2), under the one error model.
 
-**Table 3.1** (§3.4.1): the three-plane phantom of spherical markers (:func:`carmkin.imaging.phantom.
+**Table 3.1** (§3.4.1): the three-plane phantom of spherical markers (:func:`carmkin.panorama.phantom.
 marker_phantom`, planes 40 mm apart: 8 cm deep) on the table; two X-ray images stitched parallax-free —
 the first, then one rotated about the source by about 5° ("the X-ray source undergoes very limited
 rotations (around 5°)") along the table, reached by guided manual moves (§4.4.4 planner on the model,
@@ -38,6 +38,7 @@ import math
 import numpy as np
 
 from carmkin.errors import CarmkinError, SimulationError, UnreachablePanoramaError
+from carmkin.seed import SEED_TABLE_3_1, SEED_TABLE_3_2
 
 from .error_model import ErrorModel
 from .repositioning import build_model, make_room, statistics
@@ -50,13 +51,6 @@ from .stitching import (
     reference_configuration,
 )
 
-#: Table 3.1: procedure -> (mean, std px, markers) without and with VDP (source: Table 3.1).
-SEED_TABLE_3_1 = {"#1": ((1.85475, 1.34975, 14), (1.68037, 1.30408, 14)),
-                  "#2": ((2.00565, 1.36968, 13), (1.84381, 1.17027, 13)),
-                  "overall": ((1.92741, 1.36417, 27), (1.75906, 1.35613, 27))}
-#: Table 3.2: actual value -> measured by (A, B, C) (source: Table 3.2; mm or degrees).
-SEED_TABLE_3_2 = {"240 mm": (239.80, 239.25, 239.55), "120 mm": (119.51, 119.46, 119.61),
-                  "90 deg": (89.54, 89.50, 89.46), "180 deg": (179.84, 179.72, 179.36)}
 #: The second image of Table 3.1 is rotated by this much about the source (source: §3.4.1 "around 5°").
 ROTATION = math.radians(5.0)
 #: Three-plane phantom: planes 40 mm apart (source: "8cm depth"), markers every 20 mm along, three across
@@ -110,7 +104,7 @@ def acquire_compensated(room, rng: np.random.Generator, q_first, principal_point
 
 def _acquire_compensated(room, rng, q_first, principal_points_of):
     from carmkin.imaging import rotation_homography
-    from carmkin.imaging.panorama import PanoramaPlanner
+    from carmkin.panorama import PanoramaPlanner
     from carmkin.reposition.guidance import read_joints
 
     from .measure import camera_reading
@@ -150,8 +144,8 @@ def _acquire(protocol: str):
 
 
 def _first_and_phantom(room, rng):
-    from carmkin.imaging.panorama import PanoramaPlanner
-    from carmkin.imaging.phantom import marker_phantom
+    from carmkin.panorama import PanoramaPlanner
+    from carmkin.panorama.phantom import marker_phantom
 
     q_first = reference_configuration(room.system, rng)
     return q_first, marker_phantom(PanoramaPlanner(room.system, q_reference=q_first), **PHANTOM).points

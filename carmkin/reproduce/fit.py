@@ -24,10 +24,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from carmkin.errors import SimulationError
+from carmkin.seed import SEED_RESULTS
 from carmkin.validation import real_array
 
 from .error_model import ErrorModel
-from .repositioning import SEED, run
+from .repositioning import run
 
 #: The six fitted statistics: (row of the summary, 0 = mean / 1 = std).
 STATISTICS = (("image error (px)", 0), ("image error (px)", 1), ("translation (mm)", 0), ("translation (mm)", 1),
@@ -74,7 +75,7 @@ def ten_task_statistics(values, rng: np.random.Generator, resamples: int = 400) 
 
 
 def seed_vector() -> np.ndarray:
-    return np.array([SEED[key][index] for key, index in STATISTICS])
+    return np.array([SEED_RESULTS[key][index] for key, index in STATISTICS])
 
 
 @dataclass

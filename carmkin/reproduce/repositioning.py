@@ -42,15 +42,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from carmkin.errors import CarmkinError, SimulationError
+from carmkin.seed import SEED_RESULTS
 
 from carmkin.reposition.experiment import statistics
 
 from .error_model import ErrorModel, square_pixel_system
 from .measure import camera_reading, filtered_noise, pose_difference, xray_points
 
-#: The seed's §4.6.2 numbers: mean, std, max, min over ten tasks (160 corners for the image error).
-SEED = {"image error (px)": (5.2, 2.6, 8.8, 2.0), "translation (mm)": (4.6, 1.5, 7.1, 2.8),
-        "rotation (deg)": (0.37, 0.16, 0.58, 0.20)}
 #: Guidance updates before a task counts as failed.
 MAX_STEPS = 60
 #: How a task ends (module docstring).
@@ -269,7 +267,7 @@ def format_summary(stats: dict) -> str:
     for key in ("image error (px)", "translation (mm)", "rotation (deg)", "rotation angle (deg)", "true translation (mm)",
                 "true rotation (deg)"):
         mean, std, high, low = stats[key]
-        seed = SEED.get(key)
+        seed = SEED_RESULTS.get(key)
         seed_text = f"{seed[0]:8.2f} ± {seed[1]:4.2f} {seed[2]:6.2f} {seed[3]:6.2f}" if seed else ""
         lines.append(f"{key:<24}{mean:14.2f} ± {std:5.2f} {high:6.2f} {low:6.2f}{seed_text:>32}")
     lines.append(f"tasks {stats['tasks']}, repositioned {100 * stats['success']:.0f} %, "

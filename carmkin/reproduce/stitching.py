@@ -9,7 +9,7 @@ One procedure, as the seed describes it, in a room of :mod:`.repositioning`:
 * the **first X-ray image** at a random configuration around the planner's reference (§4.4.4 step 1): the
   model is built there (eq. 4.3) from the camera reading and the joint read-out; the panorama frame is that
   image, ``P_ref`` the camera reading;
-* the **other two images**: the §4.4.4 algorithm (:class:`carmkin.imaging.panorama.PanoramaPlanner` on the
+* the **other two images**: the §4.4.4 algorithm (:class:`carmkin.panorama.PanoramaPlanner` on the
   model: principal points along the phantom's line, ``R``, ``H = K R K⁻¹``, target ``P_ref [R 0; 0 1]``), goal
   joints by the model's closed-form IK, reached by the guided manual moves of
   :func:`~.repositioning.guide`; each image is warped into the panorama with its planned ``H``;
@@ -33,18 +33,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from carmkin.errors import CarmkinError, SimulationError, UnreachablePanoramaError
+from carmkin.seed import SEED_TABLE_4_6
 
 from .error_model import ErrorModel
 from .measure import xray_points
 from .repositioning import build_model, guide, repeat, statistics
 
-#: Table 4.6, per procedure and overall: image error mean, std (px), markers; distance error mean, std
-#: (mm); angle error mean, std (deg).
-SEED_TABLE_4_6 = {
-    "#1": (4.8, 2.7, 33, 2.22, 0.74, 0.60, 0.42), "#2": (3.6, 2.8, 32, 1.98, 0.56, 0.60, 0.32),
-    "#3": (4.9, 2.4, 35, 2.24, 0.76, 0.62, 0.35), "#4": (4.3, 2.1, 35, 1.96, 0.74, 0.54, 0.34),
-    "#5": (3.8, 3.0, 33, 1.88, 0.70, 0.52, 0.37), "overall": (4.3, 2.6, 168, 2.06, 0.66, 0.58, 0.33),
-}
 #: Phantom: 440 × 80 mm (source: §4.6.3); marker spacing along it and across (assumption).
 LENGTH, WIDTH, SPACING, ROWS = 0.44, 0.08, 0.02, 5
 #: Distance of the phantom plane above the pattern (m): the table top (60 mm, preset) plus 10 mm (assumption).
@@ -170,7 +164,7 @@ def acquire(room, rng: np.random.Generator, q_first, principal_points_of, vdp: b
     ``(planner, reading, images)`` with ``images`` a list of (true pose, planned ``H``) or raises
     :class:`SimulationError` when a move is not completed."""
     from carmkin.imaging import rotation_homography
-    from carmkin.imaging.panorama import PanoramaPlanner
+    from carmkin.panorama import PanoramaPlanner
     from carmkin.reposition.guidance import read_joints
 
     system = room.system

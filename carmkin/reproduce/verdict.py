@@ -160,7 +160,9 @@ BOX_END = "the operator's end is stated (within 0.5 mm / 0.1° per joint), not s
 def rows_4_6_2(system, model: ErrorModel, repeats: int, tasks: int = 10, end: str = "guided") -> list[Row]:
     """§4.6.2's six numbers (fitted), and the rotation's other reading (predicted); with ``end="box"``
     all not a test (:data:`BOX_END`)."""
-    from .repositioning import SEED, run, summary
+    from carmkin.seed import SEED_RESULTS as SEED
+
+    from .repositioning import run, summary
 
     runs = _repeats(lambda seed: summary(run(system, model, tasks, seed, end=end)), repeats)
     name, out = ("4.6.2", []) if end == "guided" else ("4.6.2 box", [])
@@ -177,7 +179,9 @@ def rows_4_6_2(system, model: ErrorModel, repeats: int, tasks: int = 10, end: st
 
 
 def rows_4_6_3(system, model: ErrorModel, repeats: int, procedures: int = 5) -> list[Row]:
-    from .stitching import SEED_TABLE_4_6, run, table
+    from carmkin.seed import SEED_TABLE_4_6
+
+    from .stitching import run, table
 
     runs = _repeats(lambda seed: table(run(system, model, procedures, seed))["overall"], repeats)
     seed = SEED_TABLE_4_6["overall"]
@@ -203,7 +207,9 @@ def _chapter3(protocol: str) -> tuple[str, str, str]:
 
 
 def rows_3_1(system, model: ErrorModel, repeats: int, protocol: str = "chapter3") -> list[Row]:
-    from .chapter3 import SEED_TABLE_3_1, table_3_1
+    from carmkin.seed import SEED_TABLE_3_1
+
+    from .chapter3 import table_3_1
 
     suffix, kind, why = _chapter3(protocol)
     runs = _repeats(lambda seed: table_3_1(system, model, 2, seed, protocol=protocol)["overall"], repeats)
@@ -224,7 +230,9 @@ ACTUAL_3_2 = {"240 mm": 240.0, "120 mm": 120.0, "90 deg": 90.0, "180 deg": 180.0
 
 def rows_3_2(system, model: ErrorModel, repeats: int, protocol: str = "chapter3") -> list[Row]:
     """Table 3.2's rows; under ``"chapter4"`` only A and B (C's one-plane stitching has no protocol choice)."""
-    from .chapter3 import SEED_TABLE_3_2, table_3_2
+    from carmkin.seed import SEED_TABLE_3_2
+
+    from .chapter3 import table_3_2
 
     suffix, kind, why = _chapter3(protocol)
     runs = _repeats(lambda seed: table_3_2(system, model, seed, protocol=protocol), repeats)

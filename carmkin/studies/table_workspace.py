@@ -249,7 +249,8 @@ def table_rows(results: list[ModelReach]) -> list[str]:
 
 
 def plot(results: list[ModelReach], path=None):
-    """Bar chart of the reachable fraction per model (:func:`carmkin.plots.table_reach`); saved to ``path``."""
-    from carmkin import plots
+    """Bar chart of the reachable fraction per model (:func:`carmkin.studies.figures.table_reach`); saved to
+    ``path``."""
+    from carmkin.studies import figures
 
-    return plots.table_reach(results, LABELS, path)
+    return figures.table_reach(results, LABELS, path)

@@ -30,6 +30,7 @@ from carmkin.errors import (
 from carmkin.model import singular_cases
 from carmkin.model.params import CARM_JOINT_NAMES, JOINT_RANGE_TOLERANCE
 from carmkin.model.system import CArmSystem
+from carmkin.seed import DISSERTATION_TABLE_4_5_TEXT
 from carmkin.transforms import inverse
 
 #: The five C-arm joints, in the order of q5.
@@ -231,35 +232,6 @@ def run_study(system: CArmSystem, grid: StudyGrid = PAPER_GRID, *, tolerance: fl
         if progress is not None:
             progress(len(q5))
     return StudyResult(system=system.name, results=tuple(results))
-
-
-# --- the dissertation's Table 4.5 (mm and degrees), for side-by-side printing ---------------------------
-
-def _row(means, stds, maxs, mins, ks) -> dict[str, dict[str, str]]:
-    return {translation_key(0.05 * i): {"K": k, "mean": a, "std": s, "max": hi, "min": lo}
-            for i, (a, s, hi, lo, k) in enumerate(zip(means.split(), stds.split(), maxs.split(), mins.split(),
-                                                      ks.split()))}
-
-
-#: Table 4.5 exactly as printed (text, to keep its precision), translations 0..400 mm:
-#: {"wigwag"|"horizontal": {"<translation_mm>": {"K", "mean", "std", "max", "min"}}}.
-DISSERTATION_TABLE_4_5_TEXT: dict[str, dict[str, dict[str, str]]] = {
-    "wigwag": _row("0 1.94 3.85 5.73 7.57 6.79 6.43 8.24 10.00",
-                   "0 0.09 0.16 0.27 0.35 4.11 4.75 4.68 4.61",
-                   "0 2.08 4.12 6.13 8.10 10.02 11.90 13.73 15.51",
-                   "0 1.81 3.60 5.35 7.08 0.12 0.95 2.72 4.47",
-                   "0 4095 4095 4095 4095 5733 8190 8190 8190"),
-    "horizontal": _row("0 6.02 12.5 19.3 26.6 28.9 39.2 50.0 44.7",
-                       "0 3.75 7.01 10.6 14.7 19.5 23.4 29.8 39.5",
-                       "0 9.46 20.46 32.96 46.92 62.32 79.11 97.24 116.68",
-                       "0 0.81 3.22 7.24 12.85 12.93 18.90 15.50 2.42",
-                       "0 2457 2457 2457 2457 3276 3276 3276 4914"),
-}
-#: The same as numbers (K as int).
-DISSERTATION_TABLE_4_5: dict[str, dict[str, dict[str, float]]] = {
-    joint: {d0: {k: (int(v) if k == "K" else float(v)) for k, v in cell.items()} for d0, cell in column.items()}
-    for joint, column in DISSERTATION_TABLE_4_5_TEXT.items()
-}
 
 
 def _same_precision(value: float, printed: str) -> str:

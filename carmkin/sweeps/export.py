@@ -37,8 +37,33 @@ from carmkin.errors import SweepError
 MM = 1e3
 
 
+def feasible(sweep):
+    """``sweep`` when it is a planned :class:`~carmkin.sweeps.Sweep` that succeeded; else :class:`SweepError`: a
+    failed sweep's frames include poses the machine cannot take (joints out of range, contacts), so its geometry
+    is never exported (``sweep.cut()`` plans its largest feasible arc)."""
+    from .plan import Sweep
+
+    if not isinstance(sweep, Sweep):
+        raise SweepError(f"sweep must be a carmkin.sweeps.Sweep (plan_sweep(...)), got {type(sweep).__name__}")
+    if not sweep.success:
+        raise SweepError(f"sweep: a failed sweep is not exported ({sweep.failure}); sweep.cut() plans its largest "
+                         "feasible arc")
+    return sweep
+
+
+def _scale(scale) -> float:
+    """``scale`` (world units per metre) as a positive finite float, or :class:`SweepError` naming it."""
+    from carmkin.validation import real_scalar
+
+    scale = real_scalar(scale, "scale", error=SweepError, low=1e-12, unit="world units per m")
+    if not scale > 0:
+        raise SweepError(f"scale must be > 0 (world units per m; 1000 for mm), got {scale!r}")
+    return scale
+
+
 def _frames(sweep):
     """Source positions s (n, 3) m, rotations R (n, 3, 3), SDD f (m), pitch (sx, sy) m, (u0, v0) px, size."""
+    sweep = feasible(sweep)
     carm = sweep.system.carm
     K = carm.intrinsics()
     return (sweep.poses[:, :3, 3], sweep.poses[:, :3, :3], carm.source_to_detector, carm.pixel_spacing,
@@ -48,6 +73,7 @@ def _frames(sweep):
 def astra_vectors(sweep, scale: float = MM) -> np.ndarray:
     """ASTRA ``cone_vec`` rows (n, 12): source, detector centre, u (one column), v (one row); world units
     ``scale`` per metre (default mm)."""
+    scale = _scale(scale)
     s, R, f, (sx, sy), (u0, v0), (cols, rows) = _frames(sweep)
     x, y, z = R[:, :, 0], R[:, :, 1], R[:, :, 2]
     centre = s + f * z + ((cols - 1) / 2 - u0) * sx * x + ((rows - 1) / 2 - v0) * sy * y
@@ -72,6 +98,7 @@ def tigre_geometry(sweep, volume_centre=None, scale: float = MM) -> dict:
     ``offDetector`` (n, 2) (v, u), ``rotDetector`` (n, 3), ``COR`` (n,), ``nDetector`` (rows, cols),
     ``dDetector`` (n/a, mm) (v, u). The image centre is ``volume_centre`` (3,) m in the table frame (default
     the sweep's target); image axes are the table axes. Our image = TIGRE's with its rows flipped."""
+    scale = _scale(scale)
     s, R, f, (sx, sy), (u0, v0), (cols, rows) = _frames(sweep)
     c = sweep.target if volume_centre is None else np.asarray(volume_centre, dtype=float).reshape(3)
     z = R[:, :, 2]
@@ -97,7 +124,7 @@ def positioner_angles(sweep, patient="HFS") -> np.ndarray:
     :func:`carmkin.interop.dicom.xa_angles`); the isocentre of each frame is the target at ``sweep.distance``."""
     from carmkin.interop.dicom import xa_angles
 
-    return np.array([xa_angles(T, patient) for T in sweep.poses])
+    return np.array([xa_angles(T, patient) for T in feasible(sweep).poses])
 
 
 def _rtk():
@@ -127,6 +154,7 @@ RTK_LAYOUTS = ("image", "rotation")
 
 def rtk_detector_axes(sweep, layout: str = "image") -> tuple[np.ndarray, np.ndarray]:
     """Unit vectors (u, v) of the RTK detector axes in our source frame for ``layout`` (:data:`RTK_LAYOUTS`)."""
+    sweep = feasible(sweep)
     if layout == "image":
         return np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
     if layout != "rotation":
@@ -147,9 +175,9 @@ def rtk_detector_axes(sweep, layout: str = "image") -> tuple[np.ndarray, np.ndar
 def rtk_geometry(sweep, scale: float = MM, layout: str = "image"):
     """An ``rtk.ThreeDCircularProjectionGeometry`` with one ``AddProjection`` per frame (world units ``scale``
     per metre, default mm): source, the principal point's foot, and the detector axes of ``layout``."""
+    scale = _scale(scale)
     itk, rtk = _rtk()
-    s, R, f, *_ = _frames(sweep)
-    u_dir, v_dir = rtk_detector_axes(sweep, layout)
+    sources, detectors, rows, columns = rtk_frames(sweep, scale, layout)
     geometry = rtk.ThreeDCircularProjectionGeometry.New()
 
     def point(a):
@@ -164,11 +192,19 @@ def rtk_geometry(sweep, scale: float = MM, layout: str = "image"):
             v[i] = float(a[i])
         return v
 
-    for k in range(len(s)):
-        if not geometry.AddProjection(point(s[k] * scale), point((s[k] + f * R[k, :, 2]) * scale),
-                                      vector(R[k] @ u_dir), vector(R[k] @ v_dir)):
+    for k in range(len(sources)):
+        if not geometry.AddProjection(point(sources[k]), point(detectors[k]), vector(rows[k]), vector(columns[k])):
             raise SweepError(f"RTK refused frame {k} (AddProjection returned false)")
     return geometry
+
+
+def rtk_frames(sweep, scale: float = MM, layout: str = "image") -> tuple[np.ndarray, ...]:
+    """What RTK's ``AddProjection`` takes per frame, (n, 3) each: the source and the principal point's foot on the
+    detector (world units ``scale`` per metre), the detector's row and column directions of ``layout``."""
+    scale = _scale(scale)
+    s, R, f, *_ = _frames(sweep)
+    u_dir, v_dir = rtk_detector_axes(sweep, layout)
+    return s * scale, (s + f * R[:, :, 2]) * scale, R @ u_dir, R @ v_dir
 
 
 def rtk_matrices(geometry) -> np.ndarray:
@@ -181,6 +217,7 @@ def rtk_matrices(geometry) -> np.ndarray:
 def pixel_from_detector(sweep, scale: float = MM, layout: str = "image") -> np.ndarray:
     """(3, 3) map of homogeneous RTK detector physical coordinates (u, v, 1) to our pixels (c, r, 1):
     ``(c − u0) sx = u (u_dir·x) + v (v_dir·x)``, ``(r − v0) sy = u (u_dir·y) + v (v_dir·y)``."""
+    scale = _scale(scale)
     _, _, _, (sx, sy), (u0, v0), _ = _frames(sweep)
     u_dir, v_dir = rtk_detector_axes(sweep, layout)
     return np.array([[u_dir[0] / (sx * scale), v_dir[0] / (sx * scale), u0],
@@ -190,6 +227,7 @@ def pixel_from_detector(sweep, scale: float = MM, layout: str = "image") -> np.n
 def rtk_projection_grid(sweep, scale: float = MM, layout: str = "image"):
     """``(origin (3,), spacing (3,), size (3,))`` of the RTK projection stack (frame k at z = k): its index
     (i, j) along (u, v) is one of our pixels — ``to_rtk_stack`` reorders our images accordingly."""
+    scale = _scale(scale)
     _, _, _, (sx, sy), (u0, v0), (cols, rows) = _frames(sweep)
     origin, spacing, size = [], [], []
     for d in rtk_detector_axes(sweep, layout):
@@ -218,10 +256,7 @@ def to_rtk_stack(sweep, images: np.ndarray, layout: str = "image") -> np.ndarray
 
 
 def write_rtk_xml(sweep, path, scale: float = MM, layout: str = "image") -> None:
-    """Write the RTK geometry of ``sweep`` to an XML file (RTK's own writer)."""
-    _, rtk = _rtk()
-    writer = rtk.ThreeDCircularProjectionGeometryXMLFileWriter.New()
-    geometry = rtk_geometry(sweep, scale, layout)  # kept alive: the writer holds a raw pointer to it
-    writer.SetFilename(str(path))
-    writer.SetObject(geometry)
-    writer.WriteFile()
+    """Write the RTK geometry of ``sweep`` to an XML file in RTK's format (:mod:`.rtk_xml`: no itk-rtk needed)."""
+    from . import rtk_xml
+
+    rtk_xml.write(path, *rtk_frames(sweep, _scale(scale), layout))

@@ -1,4 +1,4 @@
-"""Figures of a sweep (matplotlib Figure API, no pyplot state, as :mod:`carmkin.plots`): clearance and
+"""Figures of a sweep (matplotlib Figure API through :mod:`carmkin.plots`, no pyplot state): clearance and
 isocentre drift along the arc; slices and a line profile of the perturbation study. mm and degrees."""
 
 from __future__ import annotations
@@ -7,9 +7,9 @@ import numpy as np
 
 
 def _figure(figsize):
-    from matplotlib.figure import Figure
+    from carmkin import plots
 
-    return Figure(figsize=figsize, layout="constrained")
+    return plots.figure(figsize, layout="constrained")
 
 
 def clearance_and_drift(sweep, path=None):

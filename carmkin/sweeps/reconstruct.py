@@ -197,7 +197,7 @@ def perturbation_study(sweep, volume: Volume = Volume(), seed: int = 0, non_isoc
     """Reconstructions of ``sweep`` (planned on an isocentric or compensated trajectory): nominal, joint
     encoder noise (:data:`ENCODER_SIGMA`), the §4.6.2 table setup error, and — on the system with offsets
     ``non_isocentric`` = (a1, a2) m — the plain orbital rotation reconstructed as the ideal circle."""
-    from carmkin.reposition.experiment import SEED_RESULTS
+    from carmkin.seed import SEED_RESULTS
 
     system = sweep.system
     frame = reconstruction_frame(sweep)

@@ -133,8 +133,17 @@ def reference(system, q_current) -> np.ndarray:
     from carmkin.errors import InvalidConfigurationError
     from carmkin.validation import JOINT_VALUE_LIMIT
 
-    return real_array(q_current, "q_current", (system.nq,), error=InvalidConfigurationError, limit=JOINT_VALUE_LIMIT,
-                      unit="m, rad")
+    q = real_array(q_current, "q_current", (system.nq,), error=InvalidConfigurationError, limit=JOINT_VALUE_LIMIT,
+                   unit="m, rad")
+    # The machine cannot be outside its ranges, and the joints a search holds (a motorized table's) would carry
+    # the excess into the plan: refuse, naming the joint and the amount (a value on a limit is in range).
+    for r, v, prismatic in zip(system.joint_ranges, q.tolist(), system.prismatic):
+        if not r.contains(v):
+            scale, unit = (1e3, "mm") if prismatic else (math.degrees(1.0), "°")
+            raise InvalidConfigurationError(
+                f"q_current: {r.name} = {v * scale:.6g} {unit} is outside its range [{r.lower * scale:.6g}, "
+                f"{r.upper * scale:.6g}] {unit} by {r.excess(v) * scale:+.3g} {unit}")
+    return q
 
 
 def _table_samples(system, value) -> list | None:

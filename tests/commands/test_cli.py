@@ -87,7 +87,7 @@ def test_view_writes_a_page_on_both_presets(name, tmp_path, capsys):
     system = PRESETS[name]
     out = tmp_path / "new" / "v.html"  # the folder does not exist yet
     code, text, err = cli(["view", "--preset", system.name, f"--q-mm-deg={cli_values(system, mid(system))}",
-                           f"--target={cli_values(system, system.lower)}", "--frames", "3", "--html", out], capsys)
+                           f"--to-q-mm-deg={cli_values(system, system.lower)}", "--frames", "3", "--html", out], capsys)
     assert code == 0, err
     assert out.stat().st_size > 100_000 and "closest to table_0" in text
 
@@ -282,7 +282,7 @@ def test_an_exactly_rigid_pose_file_is_used_as_given_without_a_note(tmp_path, ca
     assert code == 0 and err == ""
 
 
-@pytest.mark.parametrize("option", ["--pose-file", "--target-pose"])
+@pytest.mark.parametrize("option", ["--pose-file", "--to-pose"])
 def test_a_clearly_non_rigid_pose_is_refused_in_one_line_naming_the_option_and_the_threshold(option, tmp_path, capsys):
     from carmkin.transforms import NEARLY_RIGID_TOLERANCE
 
@@ -300,14 +300,14 @@ def test_the_viewer_projects_a_rounded_target_pose(tmp_path, capsys):
     T_mm = PLAIN.fk(mid(PLAIN) + 0.1)  # not axis-aligned, so that rounding changes it
     T_mm[:3, 3] *= 1000.0
     write_pose(tmp_path / "p.txt", np.round(T_mm, 4))
-    code, out, err = cli(["view", "--target-pose", tmp_path / "p.txt", "--html", tmp_path / "v.html"], capsys)
+    code, out, err = cli(["view", "--to-pose", tmp_path / "p.txt", "--html", tmp_path / "v.html"], capsys)
     assert code == 0 and "wrote" in out
-    assert_one_line_error(err, "--target-pose", "projected the pose onto the nearest rigid transform")
+    assert_one_line_error(err, "--to-pose", "projected the pose onto the nearest rigid transform")
 
 
 def test_missing_pose_file_is_a_one_line_error(tmp_path, capsys):
     for argv in (["ik", "--pose-file", tmp_path / "none.json"],
-                 ["view", "--target-pose", tmp_path / "none.txt", "--html", tmp_path / "v.html"]):
+                 ["view", "--to-pose", tmp_path / "none.txt", "--html", tmp_path / "v.html"]):
         code, _, err = cli(argv, capsys)
         assert code == 2
         assert_one_line_error(err, "none.")
@@ -364,9 +364,9 @@ def test_bad_option_text_is_a_one_line_error(argv, option, tmp_path, capsys, mon
 
 # --- output files ------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("argv", [
-    ["workspace", "--plot", "x.txt"],
-    ["singularity", "--plot", "x.txt"],
-    ["panorama", "map", "--out", "x.txt"],
+    ["workspace", "--png", "x.txt"],
+    ["singularity", "--png", "x.txt"],
+    ["panorama", "map", "--png", "x.txt"],
     ["workspace", "--json", "x.txt"],
     ["view", "--html", "x.png"],
 ])
@@ -381,9 +381,9 @@ def test_wrong_extension_is_refused_before_any_work(argv, tmp_path, capsys):
 def test_outputs_in_missing_folders_are_created(tmp_path, capsys):
     new = tmp_path / "missing" / "folder"
     for argv, path in (
-        (["singularity", "--plot", new / "s.png", "--grid", "5"], new / "s.png"),
-        (["panorama", "map", "--grid", "3", "--out", new / "m.png"], new / "m.png"),
-        (["workspace", "--translations-mm", "0", "--json", new / "w.json", "--plot", new / "w.png"], new / "w.json"),
+        (["singularity", "--png", new / "s.png", "--grid", "5"], new / "s.png"),
+        (["panorama", "map", "--grid", "3", "--png", new / "m.png"], new / "m.png"),
+        (["workspace", "--translations-mm", "0", "--json", new / "w.json", "--png", new / "w.png"], new / "w.json"),
     ):
         code, out, err = cli(argv, capsys)
         assert code == 0, err

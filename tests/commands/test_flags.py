@@ -1,11 +1,14 @@
-"""One vocabulary on the command line: one option name for a joint vector on every command (the former names
-hidden, working, and saying so), ``carmkin --version`` and ``carmkin.__version__`` from the package metadata,
-and an output folder that is created with a line that says so."""
+"""One vocabulary on the command line (docs/cli.md): one option name for a joint vector on every command (the
+former names hidden, working, and saying so), ``--target-mm`` for a point, ``--patient-position`` for a DICOM
+code, ``--png``/``--html`` for figures, ``--json [FILE]`` on every command that computes something, usage errors
+that name the subcommand; ``carmkin --version`` and ``carmkin.__version__`` from the package metadata, and an
+output folder that is created with a line that says so."""
 
 from __future__ import annotations
 
 import argparse
 import importlib.metadata
+import json
 import re
 
 import pytest
@@ -18,7 +21,7 @@ from test_cli import cli as run  # noqa: E402 (tests/commands is on sys.path)
 #: The names each command used before the one name (kept hidden for one release).
 FORMER = {"view": "--q", "ik": "--current", "panorama shot": "--reference-q-mm-deg"}
 #: Options that take a second joint vector with another role (a target), not the configuration worked at.
-OTHER_ROLES = {"--target"}
+OTHER_ROLES = {"--to-q-mm-deg"}
 
 
 def parsers(parser: argparse.ArgumentParser | None = None, prefix: str = "") -> dict[str, argparse.ArgumentParser]:
@@ -88,3 +91,99 @@ def test_an_output_folder_that_cannot_be_made_is_refused_in_one_line(tmp_path, c
     blocker.write_text("")
     code, _, err = run(["urdf", "-o", blocker / "carm.urdf"], capsys)
     assert code == 2 and len(err.strip().splitlines()) == 1 and "--output" in err and "cannot create the folder" in err
+
+
+# --- the grammar of docs/cli.md, over every subcommand's parser ------------------------------------------------
+#: Commands that compute nothing to report (they write a file or show a scene): no --json.
+NO_JSON = {"urdf", "view"}
+#: Names that the grammar replaced; none may be visible in any --help.
+REPLACED = {"--plot", "--out", "--q", "--current", "--q-start", "--reference-q-mm-deg", "--target", "--target-pose"}
+#: Former name -> (command line that uses it, the dest it must fill, its value).
+ALIASES = {
+    "--q-start": ("sweep plan", "q_mm_deg", "0,200,0,100,0,0"),
+    "--plot": ("workspace", "png", "w.png"),
+    "--out": ("panorama map", "png", "m.png"),
+    "--target": ("view", "to_q_mm_deg", "0,200,0,100,0,0"),
+    "--target-pose": ("view", "to_pose", "pose.txt"),
+    "--patient": ("dicom", "patient_position", "FFS"),
+}
+LEAVES = parsers()
+
+
+def visible_options(parser) -> dict[str, argparse.Action]:
+    return {o: a for a in parser._actions if a.help != argparse.SUPPRESS for o in a.option_strings}
+
+
+@pytest.mark.parametrize("command", sorted(LEAVES))
+def test_every_option_follows_the_grammar(command):
+    options = visible_options(LEAVES[command])
+    assert not REPLACED & set(options), f"carmkin {command}: {REPLACED & set(options)} replaced (docs/cli.md)"
+    for name, action in options.items():
+        if action.metavar == JOINTS_METAVAR:
+            assert name.endswith("q-mm-deg"), f"carmkin {command} {name}: a configuration is --...q-mm-deg"
+        if action.metavar == "X,Y,Z" and name.startswith("--target"):
+            assert name == "--target-mm", f"carmkin {command} {name}: a point is --target-mm"
+        if action.metavar == "CODE":
+            assert name == "--patient-position", f"carmkin {command} {name}: a DICOM code is --patient-position"
+        if name == "--patient":
+            assert action.metavar != "CODE", f"carmkin {command}: --patient is a body model, not a DICOM code"
+    for action in LEAVES[command]._actions:  # every hidden name is a former name of a visible option
+        if action.help == argparse.SUPPRESS and action.option_strings:
+            assert any(a.dest == action.dest for a in options.values()), (command, action.option_strings)
+
+
+@pytest.mark.parametrize("command", sorted(set(LEAVES) - NO_JSON))
+def test_every_command_that_computes_writes_json(command):
+    action = visible_options(LEAVES[command]).get("--json")
+    assert action is not None, f"carmkin {command} has no --json"
+    assert action.metavar == "FILE" and action.nargs == "?" and action.const == "-"
+
+
+@pytest.mark.parametrize("command", sorted(LEAVES))
+def test_an_unknown_option_names_the_subcommand(command, capsys):
+    head = command.split()
+    required = {"ik": ["--pose=0,0,500,0,0,0"], "reproduce": ["model"],
+                "panorama shot": ["--principal-point", "400,300"]}.get(command, [])
+    code, out, err = run([*head, *required, "--bogus"], capsys)
+    assert code == 2 and not out and "Traceback" not in err
+    assert err.strip().splitlines() == [f"carmkin {command}: error: unrecognized arguments: --bogus "
+                                        f"(see carmkin {command} --help)"]
+
+
+@pytest.mark.parametrize("command", sorted(set(LEAVES) - NO_JSON))
+def test_an_output_that_cannot_be_written_is_refused_before_any_work(command, tmp_path, capsys):
+    blocker = tmp_path / "a-file"
+    blocker.write_text("")
+    required = {"ik": ["--pose=0,0,500,0,0,0"], "reproduce": ["all"],
+                "panorama shot": ["--principal-point", "400,300"]}.get(command, [])
+    code, out, err = run([*command.split(), *required, "--json", blocker / "x.json"], capsys)
+    assert code == 2 and not out
+    assert err.strip().splitlines() == [f"carmkin {command}: error: --json {blocker / 'x.json'}: cannot create the "
+                                        f"folder '{blocker}' ('{blocker}' is a file)"]
+
+
+@pytest.mark.parametrize("former", sorted(ALIASES))
+def test_former_names_fill_the_new_option_with_a_note(former, capsys):
+    command, dest, value = ALIASES[former]
+    args = build_parser().parse_args([*command.split(), former, value])
+    assert getattr(args, dest) == value
+    assert f"note: {former} is now called" in capsys.readouterr().err
+
+
+def test_json_dash_prints_only_json_on_stdout(capsys):
+    code, out, err = run(["ik", "--pose=213,385,359,72.7,-87.5,52.7", "--json", "-"], capsys)
+    assert code == 0 and json.loads(out)["chosen"] in (0, 1) and not err
+    code, out_flag, _ = run(["ik", "--pose=213,385,359,72.7,-87.5,52.7", "--json"], capsys)
+    assert out_flag == out
+
+
+def test_json_file_is_written_and_said(tmp_path, capsys):
+    path = tmp_path / "ik.json"
+    code, out, _ = run(["ik", "--pose=213,385,359,72.7,-87.5,52.7", "--json", path], capsys)
+    assert code == 0 and f"wrote {path}" in out and json.loads(path.read_text())["valid"] is True
+
+
+@pytest.mark.parametrize("command", sorted(LEAVES))
+def test_help_shows_no_markup(command):
+    text = LEAVES[command].format_help()
+    assert "``" not in text and not re.search(r":(?:class|func|mod|data|meth):`", text), command

@@ -69,7 +69,7 @@ def test_usage_errors_are_one_line(args):
 
 def test_map_writes_json_plot_and_page(tmp_path, capsys):
     paths = [tmp_path / "m.json", tmp_path / "m.png", tmp_path / "m.html"]
-    assert main(["views", "map", "--step-deg", "30", "--json", str(paths[0]), "--plot", str(paths[1]),
+    assert main(["views", "map", "--step-deg", "30", "--json", str(paths[0]), "--png", str(paths[1]),
                  "--html", str(paths[2])]) == 0
     out = capsys.readouterr().out
     assert "views reachable" in out
@@ -79,7 +79,7 @@ def test_map_writes_json_plot_and_page(tmp_path, capsys):
 
 def test_map_compare_prints_three_maps_and_plots(tmp_path, capsys):
     plot = tmp_path / "compare.png"
-    assert main(["views", "map", "--compare", "--step-deg", "30", "--plot", str(plot)]) == 0
+    assert main(["views", "map", "--compare", "--step-deg", "30", "--png", str(plot)]) == 0
     lines = [line for line in capsys.readouterr().out.splitlines() if "views reachable" in line]
     assert [line.split(":")[0] for line in lines] == ["C-arm alone (5 DOF)", "+ table translation (6 DOF)",
                                                        "+ motorized table (11 DOF, 11 table poses)"]

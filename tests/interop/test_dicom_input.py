@@ -21,6 +21,7 @@ from carmkin.interop import dicom
 
 pydicom = pytest.importorskip("pydicom")
 from carmkin.interop import dicom_attributes, dicom_io  # noqa: E402  (needs pydicom)
+from carmkin.reposition.dicom import moves_for_dataset  # noqa: E402
 
 Q = 0.5 * (PRESET.lower + PRESET.upper) + np.array([0.0, 0.0, 0.0, 0.0, 0.2, 0.3])
 
@@ -51,7 +52,7 @@ def test_a_negative_source_to_isocenter_distance_is_refused_not_planned_to():
     ds.SharedFunctionalGroupsSequence[0].XRayGeometrySequence[0].DistanceSourceToIsocenter = -1250.0
     message = "DistanceSourceToIsocenter (0018,9402) must be > 0 mm, got -1250"
     with pytest.raises(DicomAttributeError, match=message.replace("(", r"\(").replace(")", r"\)")) as info:
-        dicom_io.moves_for_dataset(PRESET, ds, q_current=Q)
+        moves_for_dataset(PRESET, ds, q_current=Q)
     assert (info.value.keyword, info.value.tag) == ("DistanceSourceToIsocenter", "(0018,9402)")
     with pytest.raises(DicomAttributeError, match="must be > 0 mm"):
         dicom_io.view_from_dataset(ds)
@@ -79,7 +80,7 @@ def test_an_empty_patient_position_is_not_read_as_hfs():
             dicom_io.view_from_dataset(ds, isocenter)
     del ds.PatientPosition
     with pytest.raises(DicomAttributeError, match="pass patient_position="):
-        dicom_io.moves_for_dataset(PRESET, ds, q_current=Q, isocenter=isocenter)
+        moves_for_dataset(PRESET, ds, q_current=Q, isocenter=isocenter)
     assert np.allclose(dicom_io.view_from_dataset(ds, isocenter, patient_position="FFS").pose, expected, atol=1e-12)
     ds.PatientPosition = "XYZ"
     with pytest.raises(DicomAttributeError, match=r"PatientPosition \(0018,5100\) must be one of"):
@@ -124,9 +125,10 @@ def test_every_enhanced_xa_attribute_is_required_and_checked(keyword):
 @pytest.mark.parametrize("keyword, value, words", [
     ("PositionerPrimaryAngle", 181.0, "must be within"), ("PositionerSecondaryAngle", -90.5, "must be within"),
     ("PositionerSecondaryAngle", "abcd", "cannot be read|must be a number"),
-    ("DistanceSourceToPatient", 0.0, "must be > 0 mm"), ("DistanceSourceToPatient", -900.0, "must be > 0 mm, got -900"),
+    ("DistanceSourceToIsocenter", 0.0, "must be > 0 mm"),
+    ("DistanceSourceToIsocenter", -900.0, "must be > 0 mm, got -900"),
     ("PositionerSecondaryAngle", None, "is required, the dataset has none"),
-    ("DistanceSourceToPatient", None, "is required, the dataset has none"),
+    ("DistanceSourceToIsocenter", None, "is required, the dataset has none"),
 ])
 def test_xa_attributes_are_checked_through_a_file(keyword, value, words):
     ds = xa()
@@ -222,7 +224,7 @@ CALLS = [
     (dicom_io.view_from_dataset, dict(ds=GOOD_DS, isocenter=(0.0, 0.0, 0.0), patient_origin=(0.0, 0.0, 0.0),
                                       patient_position="HFS", convention="beam"),
      dict(ds=JUNK_DATASETS, isocenter=JUNK_POINTS[1:], patient_origin=JUNK_POINTS, convention=JUNK_NAMES)),
-    (dicom_io.moves_for_dataset, dict(system=PRESET, ds=GOOD_DS, q_current=Q, isocenter=(0.0, 0.0, 0.0)),
+    (moves_for_dataset, dict(system=PRESET, ds=GOOD_DS, q_current=Q, isocenter=(0.0, 0.0, 0.0)),
      dict(system=JUNK_SYSTEMS, ds=JUNK_DATASETS, isocenter=JUNK_POINTS[1:])),
     (dicom_io.DicomView, dict(pose=np.eye(4), source="test", full_pose=True),
      dict(pose=JUNK_POSES[1:] + [None], source=[None, 1.0], full_pose=[None, 1.0, "yes"])),
@@ -301,7 +303,7 @@ def test_cli_bad_files_exit_2_with_one_line(tmp_path, capsys):
 
 def test_cli_reads_an_xa_file_without_position_when_told_one(tmp_path, capsys):
     _bad_files(tmp_path)
-    assert main(["dicom", "--read", str(tmp_path / "no_position.dcm"), "--patient", "HFS"]) == 0
+    assert main(["dicom", "--read", str(tmp_path / "no_position.dcm"), "--patient-position", "HFS"]) == 0
     assert "view from the XA positioner angles" in capsys.readouterr().out
 
 
@@ -313,3 +315,18 @@ def test_cli_convention_round_trip(tmp_path, capsys):
         assert main(["dicom", "--read", str(path), "--positioner-convention", convention]) == 0
         assert "orbital +15.000°" in capsys.readouterr().out
     assert carmkin  # the package imports without pydicom's help
+
+
+
+def test_distance_source_to_patient_is_not_the_isocentre():
+    """Issue 31: Distance Source to Patient (0018,1111) is the distance to the table or support nearest the patient
+    (PS3.3), so it never places the source: Distance Source to Isocenter does, or the caller's value."""
+    ds = xa()
+    iso = float(ds.DistanceSourceToIsocenter)
+    del ds.DistanceSourceToIsocenter
+    ds.DistanceSourceToPatient = 0.5 * iso  # the table top, nearer the source than the isocentre
+    with pytest.raises(DicomAttributeError, match="DistanceSourceToIsocenter .*Distance Source to Patient"):
+        dicom_io.view_from_dataset(ds)
+    given = dicom_io.view_from_dataset(ds, source_to_isocenter=iso / 1000.0).pose
+    ds.DistanceSourceToIsocenter = iso
+    np.testing.assert_allclose(given, dicom_io.view_from_dataset(ds).pose, atol=1e-12)

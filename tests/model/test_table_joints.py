@@ -113,3 +113,69 @@ def test_verify_passes_on_the_motorized_preset():
     report = verify(MOTORIZED, samples=2000, random_setups=5, seed=3)
     assert report.worst <= 1e-12
     assert set(report.position_error) == set(FRAMES)
+
+
+def _pinocchio_source(system, q) -> np.ndarray:
+    """The independent oracle: Pinocchio's placement of ``xray_source`` (4, 4) from the generated URDF."""
+    model = system.pinocchio()[0]
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, np.asarray(q, dtype=float))
+    return data.oMf[model.getFrameId("xray_source")].homogeneous
+
+
+def _axis_aligned(joints):
+    """The same joints with each axis rounded to its largest coordinate axis (±e_i exactly): the scalar FK's
+    two-row rotation branch; random axes take its general branch."""
+    from dataclasses import replace
+
+    out = []
+    for joint in joints:
+        i = int(np.argmax(np.abs(joint.axis)))
+        out.append(replace(joint, axis=tuple(float(np.sign(joint.axis[i])) if k == i else 0.0 for k in range(3))))
+    return tuple(out)
+
+
+@settings(max_examples=30)
+@given(st.data())
+def test_scalar_fk_equals_pinocchio_for_random_tables_both_branches(data):
+    """The scalar path of system.fk (plain floats, table motion composed in front) against Pinocchio to 1e-12,
+    for random axes (general rotation) and the same axes snapped to coordinate axes (two rows turn)."""
+    from dataclasses import replace
+
+    system = data.draw(motorized_systems(min_joints=1))
+    for candidate in (system, system.replace(table=replace(system.table, joints=_axis_aligned(system.table.joints)))):
+        q = data.draw(configurations(candidate, beyond=0.2))
+        T, oracle = candidate.fk(q), _pinocchio_source(candidate, q)
+        assert T.shape == (4, 4) and T.dtype == np.float64
+        assert np.linalg.norm(T[:3, 3] - oracle[:3, 3]) <= 1e-12
+        assert rotation_angle(T[:3, :3], oracle[:3, :3]) <= 1e-12
+        assert np.array_equal(T[3], [0.0, 0.0, 0.0, 1.0])
+        # the same configuration as a list of floats takes the same path; as a batch of one, the array path
+        assert np.array_equal(candidate.fk(q.tolist()), T)
+        assert np.abs(candidate.fk(q[None])[0] - T).max() <= 1e-15
+
+
+@pytest.mark.parametrize("system", [PRESET, MOTORIZED], ids=["preset", "motorized"])
+def test_scalar_fk_refuses_what_the_checked_path_refuses(system):
+    """Anything but plain finite floats leaves the fast path and gets the one configuration check."""
+    q = 0.5 * (system.lower + system.upper)
+    assert np.array_equal(system.fk(q.astype(np.float32)), system.fk(q.astype(np.float32).astype(float)))
+    assert np.array_equal(system.fk([0] * system.nq), system.fk(np.zeros(system.nq)))  # ints are numbers
+    for bad in (np.r_[q[:-1], np.nan], np.r_[q[:-1], np.inf], np.r_[q[:-1], 1e200], q[:-1], [True] * system.nq,
+                list(q[:-1]) + [float("nan")], tuple(q) + (0.0,)):
+        with pytest.raises(carmkin.InvalidConfigurationError, match="q"):
+            system.fk(bad)
+
+
+def test_scalar_fk_takes_a_nearly_coordinate_axis_as_any_axis():
+    """A unit axis whose largest component rounds to 1.0 beside a tiny one (found by hypothesis) is not a
+    coordinate axis: dropping its 2e-10 component moved the source by 1e-10 m."""
+    from dataclasses import replace
+
+    joint = TableJoint("table_height", False, (0.0, 1.0, 2.253846257937214e-10), (0.0, 0.0, 0.0),
+                       JointRange(-0.5, 0.0, "table_height"))
+    system = PRESET.replace(table=replace(PRESET.table, joints=(joint,)))
+    q = np.array([0.0, -0.5, 0.0, 0.0, 0.0, 0.0, 0.0])
+    T, oracle = system.fk(q), _pinocchio_source(system, q)
+    assert np.linalg.norm(T[:3, 3] - oracle[:3, 3]) <= 1e-12
+    assert rotation_angle(T[:3, :3], oracle[:3, :3]) <= 1e-12

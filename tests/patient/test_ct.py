@@ -11,7 +11,7 @@ from carmkin.errors import CarmkinError, PatientModelError
 
 @pytest.fixture(scope="module")
 def body():
-    from carmkin.interop.drr import bundled_ct_path
+    from carmkin.patient.volume import bundled_ct_path
 
     try:
         bundled_ct_path()

@@ -21,7 +21,7 @@ def test_model_and_table_3_2(capsys, tmp_path):
 
 def test_4_6_2_with_its_decomposition_plot(capsys, tmp_path):
     plot = tmp_path / "joints.png"
-    assert main(["reproduce", "4.6.2", "--tasks", "2", "--plot", str(plot), "--corner-noise-px", "0.3"]) == 0
+    assert main(["reproduce", "4.6.2", "--tasks", "2", "--png", str(plot), "--corner-noise-px", "0.3"]) == 0
     out = capsys.readouterr().out
     assert "5.20 ± 2.60" in out and "px/deg" in out and plot.stat().st_size > 0
 
@@ -50,7 +50,7 @@ def test_3_2_prints_its_verdict_with_kind_and_criterion(capsys, tmp_path):
 @pytest.mark.parametrize("argv, message", [
     (["reproduce", "4.6.2", "--corner-noise-px", "-1"], "--corner-noise-px"),
     (["reproduce", "4.6.2", "--tasks", "0"], "--tasks"),
-    (["reproduce", "fit", "--plot", "x.nope"], "--plot"),
+    (["reproduce", "fit", "--png", "x.nope"], "--png"),
     (["reproduce", "5.1"], "table"),
     (["reproduce", "all", "--repeats", "1"], "--repeats"),
     (["reproduce", "fit", "--corner-noise-grid", "1,x"], "--corner-noise-grid"),

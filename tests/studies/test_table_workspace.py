@@ -59,7 +59,7 @@ def test_cli_compare_prints_four_rows(capsys, tmp_path):
     parser = argparse.ArgumentParser()
     workspace_command.register(parser)
     args = parser.parse_args(["--table-dofs", "compare", "--poses", "4", "--random-seeds", "1",
-                              "--plot", str(tmp_path / "reach.png"), "--json", str(tmp_path / "reach.json")])
+                              "--png", str(tmp_path / "reach.png"), "--json", str(tmp_path / "reach.json")])
     assert workspace_command.run(args) == 0
     out = capsys.readouterr().out
     for model in tw.MODELS:

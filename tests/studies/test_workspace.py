@@ -178,7 +178,7 @@ def test_bad_grid_raises():
 
 def test_cli_writes_json_and_plot(tmp_path, capsys):
     out, png = tmp_path / "ws.json", tmp_path / "ws.png"
-    assert cli.main(["workspace", "--translations-mm", "0", "250", "--json", str(out), "--plot", str(png)]) == 0
+    assert cli.main(["workspace", "--translations-mm", "0", "250", "--json", str(out), "--png", str(png)]) == 0
     data = json.loads(out.read_text())
     assert list(data) == ["0", "250"]
     assert list(data["250"]) == ["vertical", "wigwag", "horizontal", "angular", "orbital"]

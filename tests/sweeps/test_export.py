@@ -155,3 +155,26 @@ def test_rtk_without_the_extra_is_a_typed_error(sweeps, monkeypatch):
     monkeypatch.setitem(sys.modules, "itk", None)  # as if itk-rtk were not installed
     with pytest.raises(MissingExtraError, match=r'pip install "carmkin\[cbct\]"'):
         export.rtk_geometry(sweeps[0])
+
+
+def test_a_failed_sweep_is_never_exported(tmp_path):
+    """Issue 31: a failed sweep's frames include poses the machine cannot take (here frames inside the table):
+    every export refuses it, naming the failure, and the CLI writes no geometry file (exit 1)."""
+    import carmkin
+    from carmkin.cli import main
+    from carmkin.errors import SweepError
+    from carmkin.sweeps import export, plan_sweep
+
+    system = carmkin.load_preset("siremobile-iso-c3d")
+    failed = plan_sweep(system, (0.010, -0.040, 0.020), 120, 15, joint="angular")
+    assert not failed.success and np.nanmin(failed.frame_clearance) < 0
+    for call in (export.astra_vectors, export.tigre_geometry, export.positioner_angles, export.rtk_detector_axes,
+                 export.pixel_from_detector):
+        with pytest.raises(SweepError, match="failed sweep"):
+            call(failed)
+    with pytest.raises(SweepError, match="failed sweep"):
+        export.write_rtk_xml(failed, tmp_path / "g.xml")
+    astra = tmp_path / "vec.npy"
+    code = main(["sweep", "plan", "--target-mm", "10,-40,20", "--arc-deg", "120", "--views", "15", "--joint",
+                 "angular", "--astra", str(astra)])
+    assert code == 1 and not astra.exists()

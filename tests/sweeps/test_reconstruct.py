@@ -60,7 +60,7 @@ def test_the_reconstruct_command_prints_the_error_and_writes_its_plot(tmp_path, 
 
     plot = tmp_path / "recon.png"
     assert main(["sweep", "reconstruct", "--size", "16", "--pixels", "32", "--views", "20", "--margin-mm", "0",
-                 "--plot", str(plot)]) == 0
+                 "--png", str(plot)]) == 0
     out = capsys.readouterr().out
     assert "rmse" in out.lower(), out
     assert plot.stat().st_size > 0

@@ -13,7 +13,7 @@ from carmkin.sweeps import astra_vectors, plan_sweep, tigre_geometry
 
 def test_plan_prints_the_summary_and_writes_exports(tmp_path, capsys):
     astra, tigre, plot, html = tmp_path / "a.npy", tmp_path / "t.npz", tmp_path / "p.png", tmp_path / "s.html"
-    assert main(["sweep", "plan", "--views", "20", "--astra", str(astra), "--tigre", str(tigre), "--plot", str(plot),
+    assert main(["sweep", "plan", "--views", "20", "--astra", str(astra), "--tigre", str(tigre), "--png", str(plot),
                  "--html", str(html)]) == 0
     out = capsys.readouterr().out
     assert "feasible" in out and "NOT a complete short scan" in out and "limited by orbital" in out
@@ -45,7 +45,7 @@ def test_plan_with_patient_and_combined_joints(capsys):
     (["--target-mm", "1,2"], "--target-mm needs 3"),
     (["--patient-box-mm", "1,2"], "--patient-box-mm needs"),
     (["--astra", "out.txt"], "--astra"),
-    (["--q-start", "1,2"], "--q-start needs 6"),
+    (["--q-mm-deg", "1,2"], "--q-mm-deg needs 6"),
 ])
 def test_usage_errors_exit_2_in_one_line(argv, message, capsys):
     try:

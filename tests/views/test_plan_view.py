@@ -5,6 +5,8 @@ import math
 
 import numpy as np
 import pytest
+
+import carmkin
 from view_systems import SYSTEMS
 
 from carmkin.errors import CarmkinError, PatientModelError, ViewError
@@ -284,3 +286,40 @@ def test_the_best_perpendicular_view_of_a_segment():
     assert near.view.axis @ prefer >= max(p.view.axis @ prefer for p in plans if p.success) - 1e-12
     far = plan_perpendicular(system, a + [3.0, 0, 0], b + [3.0, 0, 0], patient, count=12)
     assert not far.success and "no view perpendicular to the segment is reachable" in far.reason
+
+
+@pytest.mark.parametrize("name", carmkin.list_presets())
+def test_a_current_configuration_outside_the_ranges_is_refused_on_every_preset(name):
+    """Issue 31: a q_current slightly past a (held) table joint's range once gave success with that joint out of
+    range. Every joint just past either limit is refused with the joint named; on the limit it is in range and
+    every successful plan keeps every joint in range."""
+    system = carmkin.load_preset(name)
+    view = View.from_angles(30.0, 20.0, (0.0, 0.0, 0.0))
+    middle = 0.5 * (system.lower + system.upper)
+    for k, joint in enumerate(system.joint_names):
+        for limit, sign in ((system.lower[k], -1.0), (system.upper[k], 1.0)):
+            q = middle.copy()
+            q[k] = limit + sign * 1e-4
+            with pytest.raises(carmkin.InvalidConfigurationError, match=f"q_current: {joint}"):
+                plan_view(system, view, q_current=q, nearest=False)
+            q[k] = limit
+            plan = plan_view(system, view, q_current=q, nearest=False)
+            if plan.success:
+                assert np.all(plan.q >= system.lower - 1e-9) and np.all(plan.q <= system.upper + 1e-9)
+
+
+def test_coronary_views_lie_in_the_ranges_of_the_table_they_cite():
+    """Issue 31: the coronary standard views once lay outside the angle ranges of Di Mario & Sutaria's Table 2, and
+    the LAO cranial view was called spider-free though the spider is LAO caudal. The ranges, typed here from the
+    table (primary LAO +, secondary CRA +, deg), are the oracle."""
+    table_2 = {"rao-30": ((-45, -30), (0, 0)), "lao-50": ((45, 60), (0, 0)),
+               "lao-40-cranial-30": ((30, 45), (25, 35)), "lao-45-caudal-30": ((40, 50), (-40, -25)),
+               "rao-35-caudal-35": ((-45, -30), (-40, -30)), "rao-10-cranial-40": ((-10, -5), (35, 45)),
+               "rao-10-caudal-30": ((-15, -5), (-30, -30))}
+    cited = {name for name, v in STANDARD_VIEWS.items() if "Di Mario" in v.source}
+    assert cited == set(table_2)
+    for name, ((p_lo, p_hi), (s_lo, s_hi)) in table_2.items():
+        v = STANDARD_VIEWS[name]
+        assert p_lo <= v.primary_deg <= p_hi and s_lo <= v.secondary_deg <= s_hi, name
+    assert "spider" in STANDARD_VIEWS["lao-45-caudal-30"].description
+    assert not any("spider" in v.description for n, v in STANDARD_VIEWS.items() if v.secondary_deg >= 0)

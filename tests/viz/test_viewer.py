@@ -159,7 +159,7 @@ def test_cli_reports_bad_input_with_exit_2(tmp_path, capsys):
     assert "vertical" in capsys.readouterr().err
     pose = tmp_path / "pose.txt"
     pose.write_text("1 0 0 0\n0 1 0 0\n0 0 1 0\n")
-    assert main(["view", "--target-pose", str(pose), "--html", str(tmp_path / "x.html")]) == 2
+    assert main(["view", "--to-pose", str(pose), "--html", str(tmp_path / "x.html")]) == 2
     assert not (tmp_path / "x.html").exists()
 
 
@@ -168,7 +168,7 @@ def test_cli_target_pose_file_is_read_in_mm(tmp_path):
     pose = tmp_path / "pose.txt"
     np.savetxt(pose, np.vstack([np.hstack([T[:3, :3], 1000 * T[:3, 3:]]), [0, 0, 0, 1]]))
     out = tmp_path / "x.html"
-    assert main(["view", "--target-pose", str(pose), "--html", str(out)]) == 0
+    assert main(["view", "--to-pose", str(pose), "--html", str(out)]) == 0
     placed = [c for c in page_commands(out.read_text())
               if c["type"] == "set_transform" and c["path"] == "/meshcat/carmkin/targets/target"]
     np.testing.assert_allclose(np.array(placed[-1]["matrix"]).reshape(4, 4).T, T, atol=1e-9)

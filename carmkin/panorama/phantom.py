@@ -5,7 +5,7 @@ the patient side of the table top where the reference principal axis leaves it. 
 markers at the planned poses (FK of the planned joints, i.e. after the IK/FK round trip), maps each image
 into the panorama with its homography and compares with where the reference view sees each marker:
 
-* parallax-free: the shots of a :class:`~carmkin.imaging.panorama.Plan`, stitched with ``H = K R K⁻¹``;
+* parallax-free: the shots of a :class:`~carmkin.panorama.Plan`, stitched with ``H = K R K⁻¹``;
 * one-plane: shots taken by translating the source parallel to the reference image plane to the same aim
   points (for the default direction that is the table translation d0 alone), stitched with the
   plane-induced homography (eq. 4.17) of the middle marker plane;
@@ -26,7 +26,7 @@ from carmkin import imaging
 from carmkin.transforms import check_rigid_transform
 from carmkin.validation import MAX_DISTANCE, distance, integer, real_array, real_scalar
 
-from .panorama import PanoramaError, PanoramaPlanner, Plan
+from .planner import PanoramaError, PanoramaPlanner, Plan
 
 #: Most markers one phantom may hold (bounds the cost of a call: ``length / spacing`` is checked against it).
 MAX_MARKERS = 100_000
@@ -38,13 +38,13 @@ MAX_TRIALS = 10_000
 
 def _planner(planner) -> PanoramaPlanner:
     if not isinstance(planner, PanoramaPlanner):
-        raise PanoramaError(f"planner must be a carmkin.imaging.panorama.PanoramaPlanner, got {planner!r}")
+        raise PanoramaError(f"planner must be a carmkin.panorama.PanoramaPlanner, got {planner!r}")
     return planner
 
 
 def _plan(plan) -> Plan:
     if not isinstance(plan, Plan):
-        raise PanoramaError(f"plan must be a carmkin.imaging.panorama.Plan, got {plan!r}")
+        raise PanoramaError(f"plan must be a carmkin.panorama.Plan, got {plan!r}")
     return plan
 
 

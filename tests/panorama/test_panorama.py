@@ -12,8 +12,8 @@ from strategies import configurations, finite, systems
 import carmkin
 from carmkin import imaging
 from carmkin.cli import main
-from carmkin.imaging import phantom
-from carmkin.imaging.panorama import CATEGORIES, PanoramaError, PanoramaPlanner, pose_residual
+from carmkin.panorama import CATEGORIES, PanoramaError, PanoramaPlanner, phantom
+from carmkin.transforms import pose_residual
 
 SYSTEM = carmkin.load_preset("siremobile-iso-c3d")
 PLANNER = PanoramaPlanner(SYSTEM, fallback=False)
@@ -209,13 +209,13 @@ def test_motorized_table_through_the_one_solve():
 def test_cli_shot_plan_map_parallax(tmp_path, capsys):
     assert main(["panorama", "shot", "--principal-point", "600,300"]) == 0
     out = capsys.readouterr().out
-    assert "VALID" in out and "table translation" in out
+    assert "VALID" in out and "table top moves" in out
     assert main(["panorama", "shot", "--principal-point", "399.5,900", "--no-fallback"]) == 1
     assert "why:" in capsys.readouterr().out
     assert main(["panorama", "plan", "--length-mm", "400", "--overlap", "0"]) == 0
     assert "plan VALID" in capsys.readouterr().out
     png = tmp_path / "map.png"
-    assert main(["panorama", "map", "--grid", "9", "--out", str(png)]) == 0
+    assert main(["panorama", "map", "--grid", "9", "--png", str(png)]) == 0
     assert png.stat().st_size > 1000
     assert main(["panorama", "parallax", "--trials", "2", "--noise", "0.1,0"]) == 0
     assert "stitching plane" in capsys.readouterr().out

@@ -32,10 +32,10 @@ from carmkin.errors import (
 from carmkin.model.bounds import MAX_LENGTH
 from carmkin.model.kinematics import check_configuration
 from carmkin.world import Obstacle, World
-from carmkin.transforms import check_rigid_transform, pose_error, segment_box_interval
+from carmkin.transforms import check_rigid_transform, pose_residual, segment_box_interval
 from carmkin.validation import MAGNITUDE_LIMIT, real_array, real_scalar, rotation
 
-#: Map categories, in the order of the colours of :func:`plot_validity_map`.
+#: Map categories, in the order of the colours of :func:`carmkin.panorama.figure.plot_validity_map`.
 CATEGORIES = ("valid", "joint out of range", "collision", "table not in cone", "no IK solution")
 
 
@@ -114,11 +114,6 @@ class Shot:
     def table_translation(self) -> float:
         """Move of d0 (m): the C-arm relative to the table along Z0 (the table moves by −Δd0)."""
         return float(self.moves[0])
-
-
-def pose_residual(T, T_target) -> float:
-    """max(position error (m), rotation angle (rad)) between two poses (:func:`carmkin.transforms.pose_error`)."""
-    return max(pose_error(check_rigid_transform(T, "T"), check_rigid_transform(T_target, "T_target")))
 
 
 def _category(report) -> str:
@@ -387,10 +382,3 @@ class Plan:
     def table_translations(self) -> np.ndarray:
         """Δd0 (m) of each shot from the previous valid one (the first from the reference configuration)."""
         return np.array([s.table_translation for s in self.shots])
-
-
-def plot_validity_map(planner: PanoramaPlanner, us, vs, categories: np.ndarray, path=None, shots=()):
-    """The validity-map figure; drawn by :func:`carmkin.plots.panorama_validity_map`."""
-    from carmkin import plots
-
-    return plots.panorama_validity_map(planner, us, vs, categories, CATEGORIES, path, shots)

@@ -1,5 +1,5 @@
 """Rendered panoramas on a CT: DRRs at every shot of a parallax-free plan (§4.4,
-:class:`carmkin.imaging.panorama.PanoramaPlanner`) against the same line covered by translated shots
+:class:`carmkin.panorama.PanoramaPlanner`) against the same line covered by translated shots
 stitched on one plane, and the misalignment of off-plane fiducials on the overlaps.
 
 - **parallax-free**: the planned shots rotate about the source (same source position in the table frame);
@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from carmkin import imaging
-from carmkin.imaging.panorama import PanoramaPlanner
+from carmkin.panorama.planner import PanoramaError, PanoramaPlanner
 from carmkin.interop.drr import Renderer, Volume, blob_centre
 from carmkin.transforms import inverse
 
@@ -86,8 +86,6 @@ def panorama_experiment(system, volume: Volume, T_table_ct, q_reference, length:
     plan = planner.plan(length, overlap)
     invalid = [k for k, shot in enumerate(plan.shots) if not shot.valid]
     if invalid:
-        from carmkin.imaging.panorama import PanoramaError
-
         raise PanoramaError(f"shots {invalid} of the plan are not valid: {plan.shots[invalid[0]].reasons}")
     T_ref = planner.P_ref
     z = T_ref[:3, 2]

@@ -1,4 +1,5 @@
-"""URDF generation: ``urdf/carm_table.urdf.xacro`` expanded with the numbers of a :class:`CArmSystem`.
+"""URDF generation and the Pinocchio models built from it: ``urdf/carm_table.urdf.xacro`` expanded with the
+numbers of a :class:`~carmkin.model.system.CArmSystem`, then parsed by Pinocchio (:func:`build_models`).
 
 The xacro file holds the structure (links, joints, primitives); every number is passed as an xacro argument
 computed here from the system, so nothing is typed twice. Expansion uses the ``xacro`` package directly,
@@ -8,15 +9,11 @@ which needs no ROS installation.
 from __future__ import annotations
 
 from importlib import resources
-from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
 
 from carmkin.model.table_joints import xacro_spec
-
-if TYPE_CHECKING:  # for annotations only: the system calls this module, not the other way round
-    from carmkin.model.system import CArmSystem
 
 #: Number of boxes approximating the C's arc.
 C_SEGMENTS = 8
@@ -31,8 +28,10 @@ def _fmt(*values: float) -> str:
     return " ".join(repr(float(v)) for v in values)
 
 
-def xacro_arguments(system: CArmSystem) -> dict[str, str]:
-    """The xacro arguments (strings, SI units) that describe ``system``."""
+def xacro_arguments(system) -> dict[str, str]:
+    """The xacro arguments (strings, SI units) that describe ``system``, a
+    :class:`~carmkin.model.system.CArmSystem` (which calls this module through ``system.urdf()`` and
+    ``system.pinocchio()``; it is not imported here, so the two modules form no circle)."""
     carm, body, table = system.carm, system.body, system.table
     args: dict[str, str] = {}
     for i, row in enumerate(system.dh_table):
@@ -69,10 +68,21 @@ def xacro_arguments(system: CArmSystem) -> dict[str, str]:
     return args
 
 
-def urdf_text(system: CArmSystem) -> str:
-    """URDF XML of ``system``."""
+def urdf_text(system) -> str:
+    """URDF XML of ``system`` (a :class:`~carmkin.model.system.CArmSystem`)."""
     import xacro
 
     with resources.as_file(xacro_path()) as path:
         document = xacro.process_file(str(path), mappings=xacro_arguments(system))
+        for node in document.childNodes:  # xacro's banner names the file: no machine path in the URDF
+            if node.nodeType == node.COMMENT_NODE and str(path) in node.data:
+                node.data = node.data.replace(str(path), f"carmkin.urdf/{path.name}")
     return document.toprettyxml(indent="  ")
+
+
+def build_models(urdf: str) -> tuple[pin.Model, pin.GeometryModel, pin.GeometryModel]:
+    """``(model, collision_model, visual_model)`` from URDF text; the root link is the table frame 0."""
+    model = pin.buildModelFromXML(urdf)
+    collision = pin.buildGeomFromUrdfString(model, urdf, pin.GeometryType.COLLISION)
+    visual = pin.buildGeomFromUrdfString(model, urdf, pin.GeometryType.VISUAL)
+    return model, collision, visual

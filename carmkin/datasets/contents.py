@@ -1,0 +1,89 @@
+"""What a dataset folder holds: its spec (``_dataset.json``), the shards there whole and missing, rows, the
+image shape and columns, and the priors' rejection reports summed over the shards."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+from carmkin.errors import DatasetError
+from carmkin.extras import require
+
+from .shards import MANIFEST
+
+
+@dataclass(frozen=True)
+class DatasetInfo:
+    """``manifest`` (the spec as JSON), ``shards`` expected, ``done`` (indices there whole), ``missing``,
+    ``rows`` written, ``image_shape`` (rows, columns), ``columns`` (name: Arrow type), ``proposed`` and
+    ``accepted`` poses summed over the shards' rejection reports, ``reasons`` summed."""
+
+    out: str
+    manifest: dict
+    shards: int
+    done: tuple
+    missing: tuple
+    rows: int
+    image_shape: tuple | None
+    columns: dict
+    proposed: int
+    accepted: int
+    reasons: dict
+
+    def lines(self) -> list[str]:
+        m = self.manifest
+        out = [f"dataset {self.out}: prior {m['prior']} on {m['preset']}, seed {m['seed']}, "
+               f"{m['size'][0]}x{m['size'][1]} px, device {m['device']}",
+               f"rows {self.rows} of {m['n']}; shards {len(self.done)} of {self.shards} done"
+               + (f" (missing: {', '.join(map(str, self.missing[:10]))}{' ...' if len(self.missing) > 10 else ''})"
+                  if self.missing else ""),
+               f"parameters {json.dumps(m['parameters'], sort_keys=True)}"]
+        if self.proposed:
+            out.append(f"poses accepted {self.accepted} of {self.proposed} proposed "
+                       f"({self.accepted / self.proposed:.1%}); rejected by {json.dumps(self.reasons, sort_keys=True)}")
+        if self.image_shape:
+            out.append(f"image {self.image_shape[0]}x{self.image_shape[1]} (rows x columns) float32, row-major")
+        out.append("columns " + ", ".join(f"{k} {v}" for k, v in self.columns.items()))
+        return out
+
+
+def info(out) -> DatasetInfo:
+    """The :class:`DatasetInfo` of the dataset folder ``out``, or :class:`DatasetError` when it holds none."""
+    from .shards import METADATA_KEY
+
+    pq = require("pyarrow.parquet", "datasets")
+    folder = Path(out)
+    path = folder / MANIFEST
+    if not path.is_file():
+        raise DatasetError(f"{str(folder)!r} holds no dataset (no {MANIFEST})")
+    try:
+        manifest = json.loads(path.read_text())
+        n, size = int(manifest["n"]), int(manifest["shard_size"])
+    except (OSError, ValueError, KeyError) as exc:
+        raise DatasetError(f"{str(path)!r} is not a carmkin dataset manifest ({exc})") from None
+    shards = -(-n // size)
+    done, missing, rows, shape, columns, proposed, accepted, reasons = [], [], 0, None, {}, 0, 0, {}
+    for k in range(shards):
+        shard = folder / f"shard-{k:05d}-of-{shards:05d}.parquet"
+        expected = min(size, n - k * size)
+        try:
+            meta = pq.read_metadata(shard)
+            schema = pq.read_schema(shard)
+        except (OSError, ValueError):
+            missing.append(k)
+            continue
+        if meta.num_rows != expected or METADATA_KEY not in (schema.metadata or {}):
+            missing.append(k)
+            continue
+        done.append(k)
+        rows += meta.num_rows
+        extra = json.loads(schema.metadata[METADATA_KEY])
+        shape = tuple(extra["image_shape"])
+        columns = {f.name: str(f.type) for f in schema}
+        report = extra["rejections"]
+        proposed, accepted = proposed + report["proposed"], accepted + report["accepted"]
+        for key, count in report["reasons"].items():
+            reasons[key] = reasons.get(key, 0) + count
+    return DatasetInfo(str(folder), manifest, shards, tuple(done), tuple(missing), rows, shape, columns, proposed,
+                       accepted, reasons)

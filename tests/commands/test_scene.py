@@ -1,0 +1,71 @@
+"""Pictures of a plan and where things are (docs/views.md): ``carmkin views plan --png/--html`` draws the table,
+the patient, the C-arm, the beam and the target; ``carmkin view --patient`` puts the patient in the viewer; the
+text says where the target and the table top are in the table frame."""
+
+from __future__ import annotations
+
+import base64
+import re
+
+import numpy as np
+import pytest
+import umsgpack
+
+import carmkin
+from carmkin.cli import main
+from carmkin.commands import _scene
+from carmkin.patient import ParametricPatient
+
+SYSTEM = carmkin.load_preset("siremobile-iso-c3d")
+
+
+def page_paths(html: str) -> set[str]:
+    """Paths of the meshcat objects a static page sets."""
+    blobs = re.findall(r'data:application/octet-binary;base64,([A-Za-z0-9+/=]+)"', html)
+    commands = [umsgpack.unpackb(base64.b64decode(b)) for b in blobs]
+    return {c.get("path", "") for c in commands if c.get("type") == "set_object"}
+
+
+def test_views_plan_writes_a_figure_and_a_page_with_patient_and_target(tmp_path, capsys):
+    png, html = tmp_path / "plan.png", tmp_path / "plan.html"
+    assert main(["views", "plan", "--primary-deg", "30", "--secondary-deg", "20", "--png", str(png),
+                 "--html", str(html)]) == 0
+    out = capsys.readouterr().out
+    assert f"wrote {png}" in out and f"wrote {html}" in out
+    from PIL import Image
+
+    assert Image.open(png).size[0] > 500
+    paths = page_paths(html.read_text())
+    assert any("/patient/" in p for p in paths) and any(p.endswith("/target") for p in paths)
+
+
+def test_the_scene_figure_puts_the_target_where_it_is():
+    from carmkin.views import View, plan_view
+
+    patient = ParametricPatient.on_table(SYSTEM)
+    target = np.array([0.02, -0.05, 0.1])
+    plan = plan_view(SYSTEM, View.from_angles(30, 20, target), patient)
+    fig = carmkin.plots.scene_figure(SYSTEM, plan.q, patient, target)
+    side, end = fig.axes
+    for ax, across in ((side, 2), (end, 0)):
+        marks = [line for line in ax.get_lines() if line.get_label() == "target"]
+        assert len(marks) == 1
+        np.testing.assert_allclose(np.ravel(marks[0].get_data()), [target[across] * 1e3, target[1] * 1e3])
+        assert any(p.get_label() == "patient" for p in ax.patches)
+        source = [line for line in ax.get_lines() if line.get_label() == "source"][0]
+        np.testing.assert_allclose(np.ravel(source.get_data()), SYSTEM.fk(plan.q)[[across, 1], 3] * 1e3, atol=1e-9)
+
+
+def test_the_table_top_is_where_the_patient_lies():
+    patient = ParametricPatient.on_table(SYSTEM)
+    lowest = max(o.pose[1, 3] + o.size[0] for o in patient.obstacles() if o.shape == "capsule")
+    assert _scene.table_top_y(SYSTEM) == pytest.approx(lowest, abs=1e-6)  # the back's capsules touch the top
+    text = _scene.describe_scene(SYSTEM, (0.0, _scene.table_top_y(SYSTEM) - 0.05, 0.0), patient, "HFS")
+    assert "50.0 mm above the table top" in text and "parametric, 1750 mm, 75 kg, HFS" in text
+
+
+def test_view_draws_the_patient(tmp_path, capsys):
+    html = tmp_path / "v.html"
+    assert main(["view", "--patient", "parametric", "--patient-position", "FFS", "--html", str(html)]) == 0
+    assert "patient: parametric, 1750 mm, 75 kg, FFS" in capsys.readouterr().out
+    assert any("/patient/" in p for p in page_paths(html.read_text()))
