@@ -50,9 +50,9 @@ def register(parser: argparse.ArgumentParser) -> None:
                         help="3.1, 3.2: the stitching procedure, §3.3.4.2's (chapter3, default) or chapter 4's guidance")
     parser.add_argument("--end", choices=("guided", "box"), default="guided",
                         help="4.6.2: guided manual moves (default) or an operator ending within 0.5 mm / 0.1° per joint")
-    parser.add_argument("--corner-noise-grid", metavar="PX,...", default=None,
+    parser.add_argument("--corner-noise-grid-px", metavar="PX,...", default=None,
                         help="fit: corner noise grid in px (default 0.25,0.5,1,1.5,2,3)")
-    parser.add_argument("--operator-grid", metavar="S,...", default=None,
+    parser.add_argument("--operator-scale-grid", metavar="S,...", default=None,
                         help="fit: operator scale grid (default 0.02,0.05,0.1,0.2,0.4,1)")
     parser.add_argument("--seed", type=integer(0), default=0, help="numpy seed (default 0)")
     parser.add_argument("--corner-noise-px", type=number(0.0, 20.0, unit="px"), default=None,
@@ -90,8 +90,8 @@ def run(args: argparse.Namespace) -> int:
     from carmkin.reproduce import chapter3, error_model, fit, joints, repositioning, stitching, verdict
 
     system, model, out = system_from_args(args), _model(args), {}
-    corner_grid = _grid(args.corner_noise_grid, "--corner-noise-grid", fit.CORNER_NOISE_GRID)
-    operator_grid = _grid(args.operator_grid, "--operator-grid", fit.OPERATOR_SCALE_GRID)
+    corner_grid = _grid(args.corner_noise_grid_px, "--corner-noise-grid-px", fit.CORNER_NOISE_GRID)
+    operator_grid = _grid(args.operator_scale_grid, "--operator-scale-grid", fit.OPERATOR_SCALE_GRID)
 
     def verdict_of(*names, **options):
         """The verdict rows of ``names`` over --repeats, printed; kept for --json."""

@@ -29,7 +29,7 @@ def test_4_6_2_with_its_decomposition_plot(capsys, tmp_path):
 def test_fit_reruns_a_small_grid_end_to_end(capsys, tmp_path):
     """Issue 31: the fit exited 2 at 1 px corner noise (the §3.3.3 calibration refused the grid's room)."""
     out_json = tmp_path / "fit.json"
-    argv = ["reproduce", "fit", "--corner-noise-grid", "1,1.5", "--operator-grid", "0.4", "--fit-tasks", "3",
+    argv = ["reproduce", "fit", "--corner-noise-grid-px", "1,1.5", "--operator-scale-grid", "0.4", "--fit-tasks", "3",
             "--json", str(out_json)]
     assert main(argv) == 0
     out = capsys.readouterr().out
@@ -53,8 +53,8 @@ def test_3_2_prints_its_verdict_with_kind_and_criterion(capsys, tmp_path):
     (["reproduce", "fit", "--png", "x.nope"], "--png"),
     (["reproduce", "5.1"], "table"),
     (["reproduce", "all", "--repeats", "1"], "--repeats"),
-    (["reproduce", "fit", "--corner-noise-grid", "1,x"], "--corner-noise-grid"),
-    (["reproduce", "fit", "--operator-grid", "-1"], "--operator-grid"),
+    (["reproduce", "fit", "--corner-noise-grid-px", "1,x"], "--corner-noise-grid-px"),
+    (["reproduce", "fit", "--operator-scale-grid", "-1"], "--operator-scale-grid"),
 ])
 def test_bad_input_exits_2_with_a_message(argv, message, capsys):
     try:
