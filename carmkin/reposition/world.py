@@ -151,9 +151,13 @@ class World:
         _checks.generator(rng, "rng", SimulationError)
         moves = calibration_moves(positions, span)
         T0 = check_rigid_transform(self.system.fk(q), "source pose")
-        measured = []
+        measured, covariances = [], []
         for d in moves:
             T = T0.copy()
             T[:3, 3] += d  # the table moving by −d moves the camera by d relative to it
-            measured.append(self.measure_marker(T, rng).T[:3, 3])
-        return dataclasses.replace(self, tRm=calibrate_table(np.array(measured), moves, method=method))
+            estimate = self.measure_marker(T, rng)
+            measured.append(estimate.T[:3, 3])
+            covariances.append(estimate.covariance[3:, 3:])
+        # the estimator's covariances: a position is refused only when its corner noise cannot explain it
+        return dataclasses.replace(self, tRm=calibrate_table(np.array(measured), moves, method=method,
+                                                             covariances=np.array(covariances)))

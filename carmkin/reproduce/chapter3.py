@@ -18,6 +18,16 @@ images, each image warped by the homography of the phantom plane (eq. 4.17) from
 and the measured plane. The distances and angles are measured on the panorama by back-projection onto
 the plane (eq. 3.17). One procedure, as in the seed.
 
+**Protocols** (:data:`PROTOCOLS`). ``"chapter3"``, as §3.3.4.2 states it: the operator rotates the C-arm
+towards the planned view (one move per rotational joint, read on the camera; no stop threshold), then the
+table is moved until the camera-measured source translation from the first image is below
+:data:`COMPENSATION_THRESHOLD` (1 mm), and the image is warped by ``H = K R K⁻¹`` with ``R`` the *measured*
+rotation between the two camera readings after compensation (:func:`acquire_compensated`). The preset's
+table moves along one axis only: the C-arm's prismatic joints (vertical, horizontal) make the rest of the
+source–table translation (the same relative motion). ``"chapter4"``: chapter 4's guidance (planner,
+2 mm / 0.5° stop, planned homography, :func:`.stitching.acquire`) — the default before issue 31, kept
+beside for comparison.
+
 Lengths in m, angles in rad inside; tables in px, mm and degrees.
 """
 
@@ -27,11 +37,11 @@ import math
 
 import numpy as np
 
-from carmkin.errors import SimulationError, UnreachablePanoramaError
+from carmkin.errors import CarmkinError, SimulationError, UnreachablePanoramaError
 from carmkin.seed import SEED_TABLE_3_1, SEED_TABLE_3_2
 
 from .error_model import ErrorModel
-from .repositioning import make_room, statistics
+from .repositioning import build_model, make_room, statistics
 from .stitching import (
     _in_image,
     acquire,
@@ -51,6 +61,86 @@ PHANTOM = dict(length=0.25, spacing=0.02, lateral=(-0.015, 0.0, 0.015), planes=3
 METRIC_POINTS = np.array([[-0.12, 0.0, 0.0], [0.0, 0.0, 0.0], [0.12, 0.0, 0.0], [0.0, 0.015, 0.0]])
 METRIC_ABOVE_PATTERN = 0.07
 ATTEMPTS = 20
+#: §3.3.4.2: the table is moved until the source translation the camera measures is below 1 mm (source).
+COMPENSATION_THRESHOLD = 0.001
+#: Camera readings (each followed by one compensating move of every prismatic joint) before a compensation
+#: counts as failed.
+COMPENSATION_STEPS = 100
+#: The procedures of Tables 3.1 and 3.2 A/B (module docstring).
+PROTOCOLS = ("chapter3", "chapter4")
+
+
+def _protocol(protocol: str) -> str:
+    if not isinstance(protocol, str) or protocol not in PROTOCOLS:
+        raise SimulationError(f"protocol must be one of {PROTOCOLS}, got {protocol!r}")
+    return protocol
+
+
+def _prismatic_jacobian(built, q) -> np.ndarray:
+    """(3, k) derivative of the model's source position (table frame) in its prismatic joints at ``q``:
+    they are linear in the position (a central difference is exact to rounding)."""
+    columns = []
+    for j in np.flatnonzero(built.prismatic):
+        dq = np.zeros(built.nq)
+        dq[j] = 1e-3
+        columns.append((built.fk(q + dq)[:3, 3] - built.fk(q - dq)[:3, 3]) / 2e-3)
+    return np.column_stack(columns)
+
+
+def acquire_compensated(room, rng: np.random.Generator, q_first, principal_points_of):
+    """The images of one panorama by §3.3.4.2's protocol (module docstring): ``(planner, reading, images)``
+    like :func:`.stitching.acquire`, each image's ``H`` from the measured rotation after compensation.
+    A camera that loses the pattern on the way raises :class:`UnreachablePanoramaError` (the callers draw
+    another first configuration, as for a view beyond the joint ranges)."""
+    try:
+        return _acquire_compensated(room, rng, q_first, principal_points_of)
+    except UnreachablePanoramaError:
+        raise
+    except SimulationError:
+        raise
+    except CarmkinError as exc:  # the pattern out of the camera's view, no pose
+        raise UnreachablePanoramaError(f"the camera lost the pattern: {exc}") from None
+
+
+def _acquire_compensated(room, rng, q_first, principal_points_of):
+    from carmkin.imaging import rotation_homography
+    from carmkin.panorama import PanoramaPlanner
+    from carmkin.reposition.guidance import read_joints
+
+    from .measure import camera_reading
+
+    system, operator = room.system, room.model.operator()
+    built, readout, reading = build_model(room, q_first, rng)
+    planner = PanoramaPlanner(built, q_reference=readout, P_ref=reading.T)
+    images, q, q_last = [(system.fk(q_first), np.eye(3))], np.asarray(q_first, dtype=float), readout
+    revolute = [j for j in room.config.guidance.move_order(built) if not system.prismatic[j]]
+    for p in principal_points_of(planner, reading):
+        _, R = planner.rotation_for(p)
+        q_goal = read_joints(built, planner.target_pose(R), q_last, system.split(q)[1])
+        if np.any(q_goal < built.lower) or np.any(q_goal > built.upper):
+            raise UnreachablePanoramaError(f"image {len(images) + 1} needs joints beyond their ranges")
+        for j in revolute:  # rotate towards the view, each joint read on the camera before its move
+            now = camera_reading(room.world, system.fk(q), room.T_source_camera, rng)
+            q_last = read_joints(built, now.T, q_last, system.split(q)[1])
+            q = operator.execute(system, q, j, float(q_goal[j] - q_last[j]), rng)
+        for _ in range(COMPENSATION_STEPS):  # move the table until the source translation is below 1 mm
+            now = camera_reading(room.world, system.fk(q), room.T_source_camera, rng)
+            delta = now.T[:3, 3] - reading.T[:3, 3]
+            if np.linalg.norm(delta) < COMPENSATION_THRESHOLD:
+                break
+            q_last = np.clip(read_joints(built, now.T, q_last, system.split(q)[1]), built.lower, built.upper)
+            move = np.linalg.lstsq(_prismatic_jacobian(built, q_last), -delta, rcond=None)[0]
+            for j, m in zip(np.flatnonzero(system.prismatic), move):
+                q = operator.execute(system, q, int(j), float(m), rng)
+        else:
+            raise SimulationError(f"image {len(images) + 1}: source translation not below "
+                                  f"{1e3 * COMPENSATION_THRESHOLD:g} mm after {COMPENSATION_STEPS} compensations")
+        images.append((system.fk(q), rotation_homography(planner.K, reading.T[:3, :3].T @ now.T[:3, :3])))
+    return planner, reading, images
+
+
+def _acquire(protocol: str):
+    return acquire_compensated if _protocol(protocol) == "chapter3" else acquire
 
 
 def _first_and_phantom(room, rng):
@@ -61,8 +151,9 @@ def _first_and_phantom(room, rng):
     return q_first, marker_phantom(PanoramaPlanner(room.system, q_reference=q_first), **PHANTOM).points
 
 
-def overlap_errors(room, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """One Table 3.1 procedure: centroid distances (px) in the overlap, (without VDP, with VDP)."""
+def overlap_errors(room, rng: np.random.Generator, protocol: str = "chapter3") -> tuple[np.ndarray, np.ndarray]:
+    """One Table 3.1 procedure (``protocol``: :data:`PROTOCOLS`): centroid distances (px) in the overlap,
+    (without VDP, with VDP)."""
     from carmkin.imaging import apply_homography
 
     from .measure import xray_points
@@ -76,7 +167,7 @@ def overlap_errors(room, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarr
     for _ in range(ATTEMPTS):
         q_first, points = _first_and_phantom(room, rng)
         try:
-            _, _, images = acquire(room, rng, q_first, second)
+            _, _, images = _acquire(protocol)(room, rng, q_first, second)
             break
         except UnreachablePanoramaError:
             continue
@@ -92,13 +183,15 @@ def overlap_errors(room, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarr
     return out[0], out[1]
 
 
-def table_3_1(system, model: ErrorModel = ErrorModel(), procedures: int = 2, seed: int = 0, guidance=None) -> dict:
+def table_3_1(system, model: ErrorModel = ErrorModel(), procedures: int = 2, seed: int = 0, guidance=None,
+              protocol: str = "chapter3") -> dict:
     """Table 3.1's rows: procedure -> ((mean, std, markers) without VDP, (...) with VDP), and overall."""
+    protocol = _protocol(protocol)
     rng = np.random.default_rng(seed)
     room = make_room(system, model, rng, guidance)
     runs, rows = [], {}
     for k in range(int(procedures)):
-        runs.append(overlap_errors(room, rng))
+        runs.append(overlap_errors(room, rng, protocol))
         rows[f"#{k + 1}"] = tuple((*statistics(e)[:2], e.size) for e in runs[-1])
     rows["overall"] = tuple((*statistics(np.concatenate([r[i] for r in runs]))[:2],
                              sum(r[i].size for r in runs)) for i in (0, 1))
@@ -128,8 +221,10 @@ def _measure(world_points) -> dict:
             "90 deg": angle(a - b, d - b), "180 deg": angle(a - b, c - b)}
 
 
-def metric_measurements(room, rng: np.random.Generator, overlap: float = 0.1) -> dict:
-    """One Table 3.2 procedure: method ("A", "B", "C") -> the four measured values (mm, degrees)."""
+def metric_measurements(room, rng: np.random.Generator, overlap: float = 0.1, protocol: str = "chapter3") -> dict:
+    """One Table 3.2 procedure: method ("A", "B", "C") -> the four measured values (mm, degrees); A and B
+    by ``protocol`` (:data:`PROTOCOLS`)."""
+    protocol = _protocol(protocol)
     system, model = room.system, room.model
     offset = METRIC_ABOVE_PATTERN + model.plane_distance * rng.normal()
 
@@ -141,13 +236,13 @@ def metric_measurements(room, rng: np.random.Generator, overlap: float = 0.1) ->
 
     for _ in range(ATTEMPTS):
         try:
-            return _metric_attempt(room, rng, offset, aims_of)
+            return _metric_attempt(room, rng, offset, aims_of, protocol)
         except UnreachablePanoramaError:  # a planned image beyond the joint ranges, or a marker in no image: elsewhere
             continue
     raise SimulationError(f"no first configuration in {ATTEMPTS} draws has its panoramas within the ranges")
 
 
-def _metric_attempt(room, rng, offset, aims_of) -> dict:
+def _metric_attempt(room, rng, offset, aims_of, protocol: str = "chapter3") -> dict:
     from carmkin.imaging import back_project, homography_between
 
     from .measure import camera_reading
@@ -157,7 +252,7 @@ def _metric_attempt(room, rng, offset, aims_of) -> dict:
     T_pattern = phantom_frame(room, system.fk(q_first))
     T_pattern[:3, 3] += (METRIC_ABOVE_PATTERN - 0.07) * T_pattern[:3, 2]
     points = METRIC_POINTS @ T_pattern[:3, :3].T + T_pattern[:3, 3]
-    planner, reading, images = acquire(room, rng, q_first, aims_of)
+    planner, reading, images = _acquire(protocol)(room, rng, q_first, aims_of)
     n, d = plane_in_panorama(room, reading, offset)
     out = {}
     for method, vdp in (("A", True), ("B", False)):
@@ -199,10 +294,11 @@ def _panorama(system, images, points, rng, model, vdp):
     return out
 
 
-def table_3_2(system, model: ErrorModel = ErrorModel(), seed: int = 0, guidance=None) -> dict:
-    """Table 3.2: method -> measured values (one procedure, as in the seed)."""
+def table_3_2(system, model: ErrorModel = ErrorModel(), seed: int = 0, guidance=None, protocol: str = "chapter3") -> dict:
+    """Table 3.2: method -> measured values (one procedure, as in the seed; A and B by ``protocol``)."""
+    protocol = _protocol(protocol)
     rng = np.random.default_rng(seed)
-    return metric_measurements(make_room(system, model, rng, guidance), rng)
+    return metric_measurements(make_room(system, model, rng, guidance), rng, protocol=protocol)
 
 
 def format_table_3_2(result: dict) -> str:

@@ -71,6 +71,19 @@ def test_only_corner_noise_the_measured_pose_errors_match_the_reported_covarianc
     assert abs(np.mean(d2) - 6.0) < 6 * math.sqrt(12.0 / len(d2))
 
 
+def test_the_seed_s_measurement_is_one_frame_not_the_filtered_display():
+    """Issue 31: §4.6.2's errors come from separate single-frame estimates (corner noise σ), the guidance from
+    the display's mean of five (σ/√5): their reported covariances differ by the factor five."""
+    model = ErrorModel(corner_noise_px=1.0)
+    room = repositioning.make_room(SYSTEMS["siremobile-iso-c3d"], model, np.random.default_rng(3))
+    T = room.system.fk(np.array([0.05, 0.1, 0.03, 0.05, 0.2, -0.1]))
+    rng = np.random.default_rng(4)
+    single = repositioning.single_frame_reading(room, T, rng).covariance
+    filtered = measure.camera_reading(room.world, T, room.T_source_camera, rng).covariance
+    ratio = np.diag(single) / np.diag(filtered)  # both σ²(JᵀJ)⁻¹, J at two nearby estimated poses
+    assert np.allclose(ratio, model.frames, rtol=0.2)
+
+
 def test_the_filtered_stream_is_one_estimate_with_sigma_over_root_n():
     assert measure.filtered_noise(2.0, 4) == pytest.approx(1.0)
 

@@ -26,11 +26,35 @@ def test_4_6_2_with_its_decomposition_plot(capsys, tmp_path):
     assert "5.20 ± 2.60" in out and "px/deg" in out and plot.stat().st_size > 0
 
 
+def test_fit_reruns_a_small_grid_end_to_end(capsys, tmp_path):
+    """Issue 31: the fit exited 2 at 1 px corner noise (the §3.3.3 calibration refused the grid's room)."""
+    out_json = tmp_path / "fit.json"
+    argv = ["reproduce", "fit", "--corner-noise-grid-px", "1,1.5", "--operator-scale-grid", "0.4", "--fit-tasks", "3",
+            "--json", str(out_json)]
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert "chi2 of the seed's six numbers" in out and "REPRODUCED" in out
+    grid = json.loads(out_json.read_text())["fit"]["grid"]
+    assert {(c, s) for c, s, _ in grid} <= {(1.0, 0.4), (1.5, 0.4)} and grid
+
+
+def test_3_2_prints_its_verdict_with_kind_and_criterion(capsys, tmp_path):
+    out_json = tmp_path / "v.json"
+    assert main(["reproduce", "3.2", "--repeats", "2", "--json", str(out_json)]) == 0
+    out = capsys.readouterr().out
+    assert "predicted" in out and "error < 1 % (seed's claim)" in out and "fitted 0 (in-sample" in out
+    rows = json.loads(out_json.read_text())["verdict"]
+    assert len(rows) == 12 and {r["kind"] for r in rows} == {"predicted"} and all(r["criterion"] for r in rows)
+
+
 @pytest.mark.parametrize("argv, message", [
     (["reproduce", "4.6.2", "--corner-noise-px", "-1"], "--corner-noise-px"),
     (["reproduce", "4.6.2", "--tasks", "0"], "--tasks"),
     (["reproduce", "fit", "--png", "x.nope"], "--png"),
     (["reproduce", "5.1"], "table"),
+    (["reproduce", "all", "--repeats", "1"], "--repeats"),
+    (["reproduce", "fit", "--corner-noise-grid-px", "1,x"], "--corner-noise-grid-px"),
+    (["reproduce", "fit", "--operator-scale-grid", "-1"], "--operator-scale-grid"),
 ])
 def test_bad_input_exits_2_with_a_message(argv, message, capsys):
     try:
