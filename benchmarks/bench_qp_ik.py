@@ -72,7 +72,7 @@ def run_qp(ik: QPIK, task: PoseTask, targets, seeds, margin, scene):
     """Solve every target; without a scene in ``ik`` the iterates are recorded and their distances measured
     after the timed call."""
     times, iterations, converged, success, min_dist, reasons = [], [], [], [], [], []
-    record = ik.scene is None
+    record = ik.world is None
     for T, q0 in zip(targets, seeds):
         task.set_target(T)
         t = time.perf_counter()

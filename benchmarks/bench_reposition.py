@@ -58,9 +58,9 @@ def bench_pose(system, trials: int, rng) -> dict:
     K, size = system.carm.intrinsics(), (system.carm.detector_columns, system.carm.detector_rows)
     world = World(system, board, mount, mount[:3, :3])
     config = experiment.ExperimentConfig()
-    from carmkin.world import World
+    from carmkin.world import World as CollisionWorld
 
-    scene = World(system)
+    scene = CollisionWorld(system)
     references = [experiment.sample_reference(world, config, rng, scene) for _ in range(max(20, trials // 20))]
     cases = {"zero configuration (board 415 mm)": [np.zeros(system.nq)], "random references": references}
     print(f"1. pose from corner lists, {SIGMA_PX} px noise, {trials} trials per row (median / p95)")
@@ -174,9 +174,9 @@ def bench_guidance(system, tasks: int, seed: int) -> None:
     # one guidance step: the camera's estimate + IK (joints read off the pose) + swept validity of the move
     rng = np.random.default_rng(seed)
     world = experiment.make_world(system, config, rng)
-    from carmkin.world import World
+    from carmkin.world import World as CollisionWorld
 
-    scene = World(system)
+    scene = CollisionWorld(system)
     times, estimate_times, cpu_times = [], [], []
     for _ in range(max(10, tasks // 10)):
         q_ref = experiment.sample_reference(world, config, rng, scene)
