@@ -68,8 +68,12 @@ def main() -> None:
     print(row("optimal_view_map (reach_map + metrics + plan)", t_map, t_reach, unit="s"))
     print(row("  foreshortening of every cell", t_f, t_reach, unit="s"))
     print(row("  overlap of every cell", t_o, t_reach, unit="s"))
-    print(f"target: optimal_view_map <= 1.5x reach_map: {'met' if t_map <= 1.5 * t_reach else 'NOT met'} "
-          f"({t_map / t_reach:.2f}x)")
+    if args.quick:  # a 703-cell map is fixed costs: the target is the full map's (issue 29)
+        print(f"target (the full 181 x 91 map, not --quick's): optimal_view_map <= 1.5x reach_map; here "
+              f"{t_map / t_reach:.2f}x on the small map")
+    else:
+        print(f"target: optimal_view_map <= 1.5x reach_map: {'met' if t_map <= 1.5 * t_reach else 'NOT met'} "
+              f"({t_map / t_reach:.2f}x)")
     losses, fs, ov, unreachable = [], [], [], 0
     for seed in range(50):
         tree = synthetic_tree(HEART, seed)
