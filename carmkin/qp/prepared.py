@@ -16,7 +16,6 @@ from __future__ import annotations
 import dataclasses
 import importlib
 import math
-import weakref
 from typing import Callable, Sequence
 
 import numpy as np
@@ -88,7 +87,8 @@ class PreparedIK:
                             f"got {backend!r}")
         if world is not None and obstacles:
             raise QPIKError("give the obstacles either in the world or as obstacles, not both")
-        self._system = system
+        if world is not None and world.system != system:
+            raise QPIKError("world belongs to another system: build it as carmkin.world.World(system, patient)")
         self.options, self.search, self.redundancy = options, search, redundancy
         self.model = model = system.pinocchio()[0]
         self.world = world if world is not None else World(system, obstacles)
@@ -116,14 +116,12 @@ class PreparedIK:
 
     @property
     def system(self):
-        """The system this solver was prepared for."""
-        system = self._system
-        return system() if isinstance(system, weakref.ref) else system
+        """The system this solver was prepared for (its world's)."""
+        return self.world.system
 
     def hold_weakly(self) -> "PreparedIK":
         """Keep only a weak reference to the system (for caches keyed by the system: see
-        :mod:`carmkin.model.per_system`); returns ``self``."""
-        self._system = weakref.ref(self.system)
+        :mod:`carmkin.model.per_system`; :meth:`carmkin.world.World.hold_weakly`); returns ``self``."""
         self.world.hold_weakly()
         return self
 

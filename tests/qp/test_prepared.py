@@ -1,6 +1,8 @@
 """The prepared IK (qp_ik.prepare): the same answers as qp_ik.solve, a validity at the solve's margin that
 agrees with validity.check computing every pair, clearance of many configurations, and the inputs it refuses."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -203,3 +205,13 @@ def test_prepared_solvers_are_reused_by_the_wrapper_and_freed_with_the_system():
 def test_a_prebuilt_scene_and_obstacles_together_are_refused():
     with pytest.raises(QPIKError, match="either"):
         qp_ik.prepare(PRESET, PATIENT, world=World(PRESET))
+
+
+def test_a_world_of_another_system_is_refused():
+    """The prepared solver's system is its world's: a world built for another system is a typed error."""
+    from carmkin.world import World
+
+    other = PRESET.replace(carm=dataclasses.replace(PRESET.carm, a1=0.02))
+    with pytest.raises(QPIKError, match="another system"):
+        qp_ik.prepare(PRESET, world=World(other))
+    assert qp_ik.prepare(PRESET, world=World(PRESET)).system is PRESET
