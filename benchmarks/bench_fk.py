@@ -50,7 +50,7 @@ def ik_ratio(system, rng, n_targets: int, n_dls: int) -> tuple[float, float]:
     """``(Pinocchio DLS from mid-range, analytic_ik.solve)`` median seconds per target, same targets."""
     targets = list(system.fk(random_configurations(rng, system, n_targets)))
     analytic_ik.solve(system, targets[0])  # build the per-system solver once
-    t_cf = per_target_medians(lambda T: analytic_ik.solve(system, T), targets, inner=20)
+    t_cf = per_target_medians(lambda T: analytic_ik.solve(system, T).q, targets, inner=20)
     dls, q_mid = numerical_ik.solver_for(system), 0.5 * (system.lower + system.upper)
     times = []
     for T in targets[:n_dls]:
@@ -109,7 +109,7 @@ def main() -> None:
     t_dls, t_ik = ik_ratio(system, rng, *((300, 50) if args.quick else (3000, 300)))
     print("\nclosed-form IK, scalar path (siremobile-iso-c3d)")
     print(row("Pinocchio DLS from mid-range", t_dls))
-    print(row("analytic_ik.solve", t_ik, t_dls))
+    print(row("analytic_ik.solve(T).q", t_ik, t_dls))
 
     print(f"\nscalar FK ratio fk / pinocchio (4x4): {t_cf / t_pin_np:.2f}x (siremobile-iso-c3d), "
           f"{t_cf_m / t_pin_m:.2f}x (motorized table); bound <= {MAX_FK_RATIO:g}x")

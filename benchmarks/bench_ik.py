@@ -100,9 +100,9 @@ def main() -> None:
     targets = list(system.fk(q_targets))
     analytic_ik.solve(system, targets[0])  # build the per-system solver once
 
-    t_cf = per_target_medians(lambda T: analytic_ik.solve(system, T), targets, inner=20)
+    t_cf = per_target_medians(lambda T: analytic_ik.solve(system, T).q, targets, inner=20)
     q_current = 0.5 * (lower + upper)
-    t_cf_current = per_target_medians(lambda T: analytic_ik.solve(system, T, q_current), targets, inner=20)
+    t_cf_current = per_target_medians(lambda T: analytic_ik.solve(system, T, q_current).q, targets, inner=20)
 
     dls = numerical_ik.solver_for(system)
     runs, dls_times = [], []
@@ -116,8 +116,8 @@ def main() -> None:
 
     print(f"Inverse kinematics of xray_source (preset {system.name}), {n_targets} targets in the joint ranges")
     print(row("Pinocchio DLS from mid-range (baseline)", t_dls))
-    print(row("analytic_ik.solve, both branches + selection", t_cf, t_dls))
-    print(row("analytic_ik.solve with q_current", t_cf_current, t_dls))
+    print(row("analytic_ik.solve(T).q, both branches + selection", t_cf, t_dls))
+    print(row("analytic_ik.solve(T, q_current).q", t_cf_current, t_dls))
     print(f"DLS success rate (residual <= 1e-9 within 100 iterations): {success:.1%} of {n_dls}, "
           f"median {iterations:.0f} iterations; closed form: speed-up {t_dls / t_cf:.0f}x")
 

@@ -6,6 +6,7 @@ Lengths in metres, angles in radians, joint order ``[d0, d1, θ2, d3, θ4, θ5]`
 
 from __future__ import annotations
 
+import functools
 import math
 import weakref
 
@@ -35,6 +36,7 @@ TIE_TOLERANCE = 1e-12
 
 REVOLUTE = tuple(i for i, p in enumerate(PRISMATIC) if not p)
 PRISMATIC_JOINTS = tuple(i for i, p in enumerate(PRISMATIC) if p)
+PI = math.pi
 TWO_PI = 2.0 * math.pi
 
 
@@ -58,6 +60,9 @@ class ClosedFormIK:
         self.L, self.M, self.a1, self.a2 = float(fk.L), float(fk.M), float(fk.a1), float(fk.a2)
         self.sin_gamma1 = math.sin(system.setup.gamma1)
         self.c3, self.s3 = math.cos(system.setup.gamma3), math.sin(system.setup.gamma3)
+        # the constants each pose reads, one attribute read each (the scalar path's speed)
+        self.frame2_constants = (self.K, self.L, self.a2, self.pK)
+        self.scalar_constants = (self.a1, self.M, self.sin_gamma1, self.c3, self.s3, self.g)
         self.lower = tuple(float(v) for v in system.lower)
         self.upper = tuple(float(v) for v in system.upper)
         # the limits widened by the range tolerance: a value on a limit is in range
@@ -74,6 +79,9 @@ class ClosedFormIK:
                 # nearest 0 first, as in the batch path, so that ties (equally near to q_current) keep the
                 # principal value in both paths
                 self.wrap[j] = tuple(sorted(range(k_min, k_max + 1), key=abs))
+        # per joint: (index, revolute, wrap candidates or None, widened range), read by settle()
+        self.joints = tuple((j, not PRISMATIC[j], self.wrap.get(j), self.lower_ok[j], self.upper_ok[j])
+                            for j in range(6))
 
     @property
     def system(self):
@@ -86,11 +94,10 @@ class ClosedFormIK:
         Returns ``(Wx, Wy, s4, Yz, Zz, ux, uy, uz)``: X_xray's components (Wx, Wy, s4 = sin θ4), the Z
         components of Y_xray and Z_xray, and ``u = R_K^T (p + L Z_xray + a2 Y_xray − p_K)``.
         """
-        (k00, k01, k02), (k10, k11, k12), (k20, k21, k22) = self.K
-        L, a2 = self.L, self.a2
-        wx = px + L * z0 + a2 * y0 - self.pK[0]
-        wy = py + L * z1 + a2 * y1 - self.pK[1]
-        wz = pz + L * z2 + a2 * y2 - self.pK[2]
+        ((k00, k01, k02), (k10, k11, k12), (k20, k21, k22)), L, a2, (pK0, pK1, pK2) = self.frame2_constants
+        wx = px + L * z0 + a2 * y0 - pK0
+        wy = py + L * z1 + a2 * y1 - pK1
+        wz = pz + L * z2 + a2 * y2 - pK2
         return (k00 * x0 + k10 * x1 + k20 * x2, k01 * x0 + k11 * x1 + k21 * x2, k02 * x0 + k12 * x1 + k22 * x2,
                 k02 * y0 + k12 * y1 + k22 * y2, k02 * z0 + k12 * z1 + k22 * z2,
                 k00 * wx + k10 * wy + k20 * wz, k01 * wx + k11 * wy + k21 * wz, k02 * wx + k12 * wy + k22 * wz)
@@ -108,59 +115,48 @@ class ClosedFormIK:
             c2, s2 = math.cos(t2), math.sin(t2)
         t4 = math.atan2(s4, hyp)
         t5 = math.atan2(Yz, Zz)
-        f_c = s2 * self.c3 + c2 * self.s3
-        det_j = f_c * self.sin_gamma1 * hyp
-        gx, gy, gz = self.g
+        a1, M, sin_gamma1, c3, s3, (gx, gy, gz) = self.scalar_constants
+        det_j = (s2 * c3 + c2 * s3) * sin_gamma1 * hyp
         det2 = gx * c2 + gy * s2
-        a1, M = self.a1, self.M
-        out = []
-        for sigma in (1.0, -1.0):
-            c2s, s2s, c4 = sigma * c2, sigma * s2, sigma * hyp
-            rx = ux - a1 * c2s * s4 + M * s2s
-            ry = uy - a1 * s2s * s4 - M * c2s
-            rz = uz - a1 * c4
-            det = sigma * det2
-            if det != 0.0:
-                d0 = (rx * c2s + ry * s2s) / det
-                d3 = (gx * ry - gy * rx) / det
-            else:
-                d0 = d3 = math.nan
-            d1 = rz - d0 * gz
-            if sigma > 0:
-                out.append([d0, d1, t2, d3, t4, t5])
-            else:  # (θ2 + π, π − θ4, θ5 + π), wrapped into (−π, π]
-                out.append([d0, d1, t2 - math.pi if t2 > 0.0 else t2 + math.pi, d3,
-                            math.pi - t4 if t4 >= 0.0 else -math.pi - t4, t5 - math.pi if t5 > 0.0 else t5 + math.pi])
-        return out[0], out[1], det_j, det2
+        # branch 0 (σ = +1) and branch 1 (σ = −1: c2, s2, c4 change sign, and so does det2)
+        a1s4, a1c4, Ms2, Mc2 = a1 * s4, a1 * hyp, M * s2, M * c2
+        rx, ry = ux - a1s4 * c2 + Ms2, uy - a1s4 * s2 - Mc2
+        rx1, ry1 = ux + a1s4 * c2 - Ms2, uy + a1s4 * s2 + Mc2
+        if det2 != 0.0:
+            d0, d3 = (rx * c2 + ry * s2) / det2, (gx * ry - gy * rx) / det2
+            d0_1, d3_1 = (rx1 * c2 + ry1 * s2) / det2, (gy * rx1 - gx * ry1) / det2
+        else:
+            d0 = d3 = d0_1 = d3_1 = math.nan
+        # branch 1's angles (θ2 + π, π − θ4, θ5 + π) wrapped into (−π, π]
+        q0 = [d0, uz - a1c4 - d0 * gz, t2, d3, t4, t5]
+        q1 = [d0_1, uz + a1c4 - d0_1 * gz, t2 - PI if t2 > 0.0 else t2 + PI, d3_1,
+              PI - t4 if t4 >= 0.0 else -PI - t4, t5 - PI if t5 > 0.0 else t5 + PI]
+        return q0, q1, det_j, det2
 
-    def representatives(self, q: list, ref) -> list:
-        """Angles of ``q`` in (−π, π], or the in-range representative nearest to ``ref`` (in place)."""
-        for j in REVOLUTE:
-            t = wrap_angle(q[j])
-            ks = self.wrap.get(j)
-            if ks is not None:
-                lo, hi, r = self.lower_ok[j], self.upper_ok[j], ref[j]
-                best = None
-                for k in ks:
-                    c = t + k * TWO_PI
-                    if lo <= c <= hi and (best is None or abs(c - r) < abs(best - r)):
-                        best = c
-                if best is not None:
-                    t = best
-            q[j] = t
-        return q
+    def settle(self, q: list, ref) -> dict:
+        """Put branch ``q`` in range, in place, and return its excess.
 
-    def excess(self, q) -> dict:
-        """Signed excess of the out-of-range joints of ``q`` (name -> m or rad)."""
+        Each angle goes to (−π, π], or to its in-range representative θ + 2πk nearest to ``ref`` where the
+        joint's range reaches beyond; the result is the signed excess of the joints still out of range
+        (name -> m or rad; NaN for a NaN value), empty when ``q`` is within its ranges. One pass over the
+        joints: this is the scalar path's inner loop."""
         out = {}
-        for j in range(6):
+        for j, revolute, ks, lo, hi in self.joints:
             v = q[j]
-            if v < self.lower_ok[j]:
-                out[self.names[j]] = v - self.lower[j]
-            elif v > self.upper_ok[j]:
-                out[self.names[j]] = v - self.upper[j]
-            elif v != v:  # NaN
-                out[self.names[j]] = math.nan
+            if revolute:
+                if not -PI < v <= PI:  # the closed form's atan2 angles are, but for −π; DLS results need not be
+                    v = wrap_angle(v)
+                if ks and not (lo <= v <= hi and abs(v - ref[j]) < PI):  # else no v + 2πk is nearer ref[j]
+                    r, best = ref[j], None
+                    for k in ks:
+                        c = v + k * TWO_PI
+                        if lo <= c <= hi and (best is None or abs(c - r) < abs(best - r)):
+                            best = c
+                    if best is not None:
+                        v = best
+                q[j] = v
+            if not lo <= v <= hi:  # outside, or NaN
+                out[self.names[j]] = v - self.lower[j] if v < lo else v - self.upper[j] if v > hi else math.nan
         return out
 
     @staticmethod
@@ -168,14 +164,15 @@ class ClosedFormIK:
         """The rules of §4.4.2: within limits, then rotational movement, then translational movement."""
         if within0 != within1:
             return 0 if within0 else 1
-        rot0 = sum(abs(q0[j] - ref[j]) for j in REVOLUTE)
-        rot1 = sum(abs(q1[j] - ref[j]) for j in REVOLUTE)
+        (i, j, k), (l, m, n) = REVOLUTE, PRISMATIC_JOINTS  # written out: the scalar path's speed
+        rot0 = abs(q0[i] - ref[i]) + abs(q0[j] - ref[j]) + abs(q0[k] - ref[k])
+        rot1 = abs(q1[i] - ref[i]) + abs(q1[j] - ref[j]) + abs(q1[k] - ref[k])
         if rot1 < rot0 - TIE_TOLERANCE:
             return 1
         if rot0 < rot1 - TIE_TOLERANCE:
             return 0
-        tr0 = sum(abs(q0[j] - ref[j]) for j in PRISMATIC_JOINTS)
-        tr1 = sum(abs(q1[j] - ref[j]) for j in PRISMATIC_JOINTS)
+        tr0 = abs(q0[l] - ref[l]) + abs(q0[m] - ref[m]) + abs(q0[n] - ref[n])
+        tr1 = abs(q1[l] - ref[l]) + abs(q1[m] - ref[m]) + abs(q1[n] - ref[n])
         return 1 if tr1 < tr0 - TIE_TOLERANCE else 0
 
     def singular_cases(self, det_j: float, c4: float, f_c: float) -> tuple:
@@ -184,17 +181,15 @@ class ClosedFormIK:
 
     def regular(self, T: np.ndarray, q0: list, q1: list, det_j: float, q_ref) -> IKResult:
         """The result of a regular pose from its two closed-form branches (lists, changed in place)."""
-        self.representatives(q0, q_ref)
-        self.representatives(q1, q_ref)
-        e0, e1 = self.excess(q0), self.excess(q1)
+        e0, e1 = self.settle(q0, q_ref), self.settle(q1, q_ref)
         chosen = self.choose(q0, q1, not e0, not e1, q_ref)
-        b0 = BranchStatus(not e0, e0, _pose_check=lambda: self.residual(q0, T))
-        b1 = BranchStatus(not e1, e1, _pose_check=lambda: self.residual(q1, T))
-        return IKResult(np.array((q0, q1)), chosen, (b0, b1), det_j)
+        return IKResult((q0, q1), chosen, functools.partial(self.statuses, T, q0, q1, e0, e1), det_j)
 
-    def is_singular(self, det_j: float, q0: list, q1: list) -> bool:
-        """|det J| below :data:`SINGULAR_TOLERANCE`, or translations the closed form cannot give."""
-        return not abs(det_j) >= SINGULAR_TOLERANCE or not math.isfinite(q0[0] + q1[0] + q0[3] + q1[3])
+    def statuses(self, T, q0: list, q1: list, e0: dict, e1: dict) -> tuple:
+        """The :class:`BranchStatus` of a regular pose's two branches (excess ``e0``, ``e1``; residual on
+        first read)."""
+        return (BranchStatus(not e0, e0, _pose_check=lambda: self.residual(q0, T)),
+                BranchStatus(not e1, e1, _pose_check=lambda: self.residual(q1, T)))
 
     def residual(self, q, T) -> float:
         """max(position error m, rotation angle rad) of the closed-form FK of ``q`` against ``T``."""
@@ -202,14 +197,14 @@ class ClosedFormIK:
             return max(pose_error(self.system.closed_form.pose(q), np.asarray(T, dtype=float)))
 
     def excess_batch(self, v: np.ndarray, j: int) -> np.ndarray:
-        """Vectorized :meth:`excess` of joint ``j`` for values ``v``: signed excess, 0 within the range
+        """Vectorized excess (:meth:`settle`) of joint ``j`` for values ``v``: signed excess, 0 within the range
         widened by :data:`JOINT_RANGE_TOLERANCE` (NaN stays NaN)."""
         lo, hi = self.lower[j], self.upper[j]
         out = np.where(v < self.lower_ok[j], v - lo, np.where(v > self.upper_ok[j], v - hi, 0.0))
         return np.where(np.isnan(v), np.nan, out)
 
     def representatives_batch(self, q: np.ndarray, ref: np.ndarray, zero_ref: bool) -> None:
-        """Vectorized :meth:`representatives` on q (2, 6, N) with ref (6, N) or (6, 1), in place."""
+        """Vectorized representatives (:meth:`settle`) on q (2, 6, N) with ref (6, N) or (6, 1), in place."""
         for j in REVOLUTE:
             t = q[:, j]
             t[t <= -math.pi] += TWO_PI  # atan2 gives [−π, π]: map −π to π

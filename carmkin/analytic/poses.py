@@ -20,6 +20,10 @@ from carmkin.errors import InvalidPoseError
 from carmkin.transforms import NEARLY_RIGID_TOLERANCE, check_rigid_transform, nearest_rigid
 from carmkin.validation import MAGNITUDE_LIMIT, RIGID_TOLERANCE, real_array, rigidity
 
+#: The native float64 dtype (a singleton: the fast path compares by identity) and a rigid pose's last row.
+FLOAT64 = np.dtype(np.float64)
+LAST_ROW = [0.0, 0.0, 0.0, 1.0]
+
 
 def project(T, name: str, batch: bool = False):
     """``(T_rigid, correction)`` for a pose that failed the rigid check: the nearest rigid transform when
@@ -40,13 +44,13 @@ def project(T, name: str, batch: bool = False):
 
 def pose_rows(T, name: str = "T"):
     """``(T (4, 4) float, rows as nested lists, correction)`` of a rigid or nearly rigid pose (see above)."""
-    if type(T) is not np.ndarray or T.shape != (4, 4) or T.dtype != np.float64:
+    if type(T) is not np.ndarray or T.shape != (4, 4) or T.dtype is not FLOAT64:
         T = real_array(T, name, error=InvalidPoseError, unit="m")
         if T.shape != (4, 4):
             check_rigid_transform(T, name)  # raises the shape error
     rows = T.tolist()
     (a, b, c, px), (d, e, f, py), (g, h, i, pz), last = rows
-    ok = (math.isfinite(a + b + c + d + e + f + g + h + i) and last == [0.0, 0.0, 0.0, 1.0]
+    ok = (math.isfinite(a + b + c + d + e + f + g + h + i) and last == LAST_ROW
           and abs(px) <= MAGNITUDE_LIMIT and abs(py) <= MAGNITUDE_LIMIT and abs(pz) <= MAGNITUDE_LIMIT)
     # each comparison separately: NaN fails it (max(0.6, nan) is 0.6 and would let a NaN translation through)
     if ok:

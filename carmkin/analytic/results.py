@@ -11,6 +11,8 @@ import numpy as np
 
 from carmkin.transforms import pose_error
 
+FLOAT = np.float64
+
 
 @dataclass(eq=False)
 class BranchStatus:
@@ -48,7 +50,6 @@ class BranchStatus:
         return ", ".join(parts) or "ok"
 
 
-@dataclass(eq=False)
 class IKResult:
     """Both IK solutions of one pose and the chosen one.
 
@@ -58,29 +59,61 @@ class IKResult:
     ``pose_correction``: ``‖T_rigid − T‖_F`` by which a nearly rigid ``T`` was projected onto the nearest
     rigid transform (:mod:`carmkin.analytic.poses`; 0 for a rigid one); :attr:`validity`: the §4.4.3
     validity report of the chosen solution at the one default margin (computed on first read).
+
+    The solver computes every value; the scalar path hands over the two branches as lists and the branch
+    statuses as a callable, and the array and the status objects are built on first read (packaging them
+    cost a third of a scalar solve). ``solutions`` may be given as an array or as two sequences of six floats,
+    ``branches`` as a tuple or as a callable returning it.
     """
 
-    solutions: np.ndarray
-    chosen: int
-    branches: tuple
-    det_j: float
-    pose_correction: float = 0.0
-    _check: object = field(default=None, repr=False, compare=False)
+    __slots__ = ("_solutions", "chosen", "_branches", "det_j", "pose_correction", "_check", "_q", "_validity")
 
-    @cached_property
+    def __init__(self, solutions, chosen: int, branches, det_j: float, pose_correction: float = 0.0) -> None:
+        self._solutions = solutions
+        self.chosen = chosen
+        self._branches = branches
+        self.det_j = det_j
+        self.pose_correction = pose_correction
+        self._check = self._q = self._validity = None
+
+    def __repr__(self) -> str:
+        return (f"IKResult(solutions={self.solutions!r}, chosen={self.chosen}, branches={self.branches!r}, "
+                f"det_j={self.det_j!r}, pose_correction={self.pose_correction!r})")
+
+    # solutions, branches, q and validity cache by hand: functools.cached_property takes a lock on Python 3.11 and
+    # costs more than the closed form's arithmetic
+
+    @property
+    def solutions(self) -> np.ndarray:
+        """(2, 6): both branches (m, rad)."""
+        if type(self._solutions) is not np.ndarray:
+            self._solutions = np.array(self._solutions, dtype=float)
+        return self._solutions
+
+    @property
+    def branches(self) -> tuple:
+        """The two :class:`BranchStatus`."""
+        if callable(self._branches):
+            self._branches = self._branches()
+        return self._branches
+
+    @property
     def validity(self):
         """The :class:`~carmkin.robot.validity.ValidityReport` of the chosen solution at
         :data:`carmkin.world.DEFAULT_MARGIN` (joints, clearance to table and floor, table in the cone): the
         verdict :func:`carmkin.robot.validity.check` and :func:`carmkin.qp_ik.solve` give the same configuration;
         ``None`` for an unsolved pose. :attr:`valid` is the joint-range part of it."""
-        if self._check is None or not np.all(np.isfinite(self.q)):
-            return None
-        return self._check(self.q)
+        if self._validity is None and self._check is not None and np.all(np.isfinite(self.q)):
+            check, system = self._check  # set by carmkin.analytic_ik.solve: (check(system, q), system)
+            self._validity = check(system, self.q)
+        return self._validity
 
     @property
     def q(self) -> np.ndarray:
-        """The chosen solution (6,)."""
-        return self.solutions[self.chosen]
+        """The chosen solution (6,): a copy of row :attr:`chosen` of :attr:`solutions`."""
+        if self._q is None:
+            self._q = np.array(self._solutions[self.chosen], FLOAT)
+        return self._q
 
     @property
     def valid(self) -> bool:

@@ -121,8 +121,8 @@ def solve(ik: ClosedFormIK, T, rows, q_ref, q0, q1, det_j) -> IKResult:
     cases = ik.singular_cases(det_j, float(hyp[0]), float(f_c[0]))
     solutions, statuses = [], []
     for b in range(2):
-        q_b = ik.representatives(q[b, :, 0].tolist(), q_ref)
-        e = ik.excess(q_b)
+        q_b = q[b, :, 0].tolist()
+        e = ik.settle(q_b, q_ref)
         solutions.append(q_b)
         statuses.append(BranchStatus(not e, e, cases, False, True, float(residual[b, 0])))
     chosen = ik.choose(solutions[0], solutions[1], statuses[0].within_limits, statuses[1].within_limits, q_ref)
@@ -183,8 +183,8 @@ def solve_numerical(ik, T, rows, q_ref, q0, q1, det_j) -> IKResult:
                 best = run
             if run.success:
                 break
-        q = ik.representatives([float(v) for v in best.q], q_ref)
-        e = ik.excess(q)
+        q = [float(v) for v in best.q]
+        e = ik.settle(q, q_ref)
         solutions.append(q)
         statuses.append(BranchStatus(not e, e, cases, True, best.success, best.residual))
     if not (statuses[0].reached or statuses[1].reached):

@@ -7,14 +7,20 @@ of this package (the single-axis table chain) calls it directly on the 6-DOF sys
 
 from __future__ import annotations
 
+import math
+
 from carmkin.analytic import singular
-from carmkin.analytic.closed_form import ClosedFormIK
+from carmkin.analytic.closed_form import SINGULAR_TOLERANCE, ClosedFormIK
 from carmkin.analytic.poses import pose_rows
 from carmkin.analytic.results import IKResult
 from carmkin.errors import InvalidConfigurationError
 from carmkin.model.kinematics import check_configuration
 from carmkin.model.per_system import per_system
 from carmkin.validation import JOINT_VALUE_LIMIT, plain_floats
+
+
+#: The reference configuration when none is given.
+ZERO = (0.0,) * 6
 
 
 @per_system
@@ -28,7 +34,7 @@ def reference(q_current, n_joints: int = 6):
     """``q_current`` as a sequence of floats (m, rad), zero when None; a plainly valid vector takes the fast
     path (:func:`carmkin.validation.plain_floats`)."""
     if q_current is None:
-        return (0.0,) * n_joints
+        return ZERO if n_joints == 6 else (0.0,) * n_joints
     ref = plain_floats(q_current, n_joints, JOINT_VALUE_LIMIT)
     if ref is not None:
         return ref
@@ -43,9 +49,10 @@ def solve_pose(system, T, q_current=None) -> IKResult:
     ``system`` already known to be a :class:`carmkin.CArmSystem`; see :func:`carmkin.analytic_ik.solve`."""
     ik = solver_for(system)
     T, rows, correction = pose_rows(T, "T")
-    q_ref = reference(q_current)
+    q_ref = ZERO if q_current is None else reference(q_current)
     q0, q1, det_j, _ = ik.angles_and_translations(rows)
-    if ik.is_singular(det_j, q0, q1):
+    # singular: |det J| below SINGULAR_TOLERANCE (or NaN), or translations the closed form cannot give
+    if not abs(det_j) >= SINGULAR_TOLERANCE or not math.isfinite(q0[0] + q1[0] + q0[3] + q1[3]):
         result = singular.solve(ik, T, rows, q_ref, q0, q1, det_j)
     else:
         result = ik.regular(T, q0, q1, det_j, q_ref)

@@ -16,6 +16,7 @@ from __future__ import annotations
 import dataclasses
 import importlib
 import math
+import sys
 from typing import Callable, Sequence
 
 import numpy as np
@@ -219,7 +220,8 @@ class PreparedIK:
             if locked:
                 return None
             try:  # looked up at call time, so a stand-in module (tests) is honoured
-                result = importlib.import_module("carmkin.analytic_ik").solve(system, pose, q_current=q_current)
+                facade = sys.modules.get("carmkin.analytic_ik") or importlib.import_module("carmkin.analytic_ik")
+                result = facade.solve(system, pose, q_current=q_current)
             except CarmkinError as exc:
                 return Path.CLOSED_FORM, None, np.zeros((0, system.nq)), str(exc)
             return Path.CLOSED_FORM, result, np.asarray(result.solutions, dtype=float), None
