@@ -325,7 +325,7 @@ def plan_sweep(system, target, arc_deg: float = 190.0, n_views: int = 100, patie
     if first is not None:
         first = SweepFailure(first.kind, first.angle, first.frame, _largest_run(phi, frame_ok, seg_ok), first.joint,
                              first.pair, first.distance)
-    poses = system.fk(np.where(np.isfinite(q), q, 0.0))
+    poses = system.fk(np.where(np.isfinite(q), q, 0.0), check_units=False)
     from carmkin.imaging.projection import intrinsics
 
     K, _ = intrinsics(system)
