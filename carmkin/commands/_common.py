@@ -410,6 +410,8 @@ def output_folder(path: str, option: str) -> Path:
 def _missing_folder(folder: Path) -> str:
     """Why ``folder`` cannot hold an output: the first part of it that is a file, or that it does not exist."""
     blocker = next((p for p in (folder, *folder.parents) if p.exists()), None)
+    if blocker == folder and not folder.is_dir():
+        return f"{str(folder)!r} is a file, not a folder"
     if blocker is not None and not blocker.is_dir():
         return f"the folder {str(folder)!r} cannot exist ({str(blocker)!r} is a file)"
     return f"the folder {str(folder)!r} does not exist (create it first: mkdir -p {shlex.quote(str(folder))})"

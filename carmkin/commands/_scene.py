@@ -11,6 +11,9 @@ import numpy as np
 MM = 1000.0
 #: Radius (m) of the sphere that marks the target in the viewer page.
 TARGET_MARK_M = 0.012
+#: Distance (m) within which the viewer page colours a C-arm part by its distance to the table, patient or floor
+#: (as ``carmkin view --margin-mm``'s default).
+COLOUR_MARGIN_M = 0.1
 
 
 def add_patient_arguments(parser, default: str = "parametric") -> None:
@@ -88,7 +91,9 @@ def write_figures(args, system, q, patient, target, title: str = "") -> None:
 
 
 def scene_page(system, q, patient=None, target=None) -> str:
-    """A static viewer page: the C-arm at q with its X-ray cone, the table, the patient and the target."""
+    """A static viewer page: the C-arm at q with its X-ray cone, the table, the patient and the target; the C-arm
+    parts within :data:`COLOUR_MARGIN_M` of the table, patient or floor coloured by distance, and every body the
+    C-arm collides with painted red (:meth:`carmkin.viz.CArmViewer.show_distances`)."""
     from carmkin.viz import CArmViewer
     from carmkin.viz.views import draw_patient
 
@@ -97,6 +102,7 @@ def scene_page(system, q, patient=None, target=None) -> str:
     viewer = CArmViewer(system, q=q)
     if patient is not None:
         draw_patient(viewer, patient)
+    viewer.show_distances(margin=COLOUR_MARGIN_M, patient=patient)  # collisions red, as the text reports them
     if target is not None:
         mark = np.eye(4)
         mark[:3, 3] = target

@@ -191,8 +191,8 @@ def test_an_output_that_cannot_be_written_is_refused_before_any_work(command, tm
                 "panorama shot": ["--principal-point", "400,300"], **REQUIRED}.get(command, [])
     code, out, err = run([*command.split(), *required, "--json", blocker / "x.json"], capsys)
     assert code == 2 and not out
-    assert err.strip().splitlines() == [f"carmkin {command}: error: --json {blocker / 'x.json'}: cannot create the "
-                                        f"folder '{blocker}' ('{blocker}' is a file)"]
+    assert err.strip().splitlines() == [f"carmkin {command}: error: --json {blocker / 'x.json'}: '{blocker}' is a "
+                                        "file, not a folder"]
 
 
 @pytest.mark.parametrize("former", sorted(ALIASES))
