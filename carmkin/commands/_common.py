@@ -35,6 +35,9 @@ from carmkin.validation import unit_slip
 DEFAULT_PRESET = "siremobile-iso-c3d"
 #: Factors from SI to the command line's units: m -> mm, rad -> degrees.
 MM_PER_M = 1000.0
+#: Smallest distance (mm) accepted by a distance option (source to target, source to object plane): 10 mm, less
+#: than any source housing allows. A value below it is a distance in m (``0.6`` for 600 mm), refused naming it.
+MIN_DISTANCE_MM = 10.0
 DEG_PER_RAD = 180.0 / math.pi
 #: Metavar of a joint-vector option: one value per joint of the preset, mm or degrees.
 JOINTS_METAVAR = "V1,...,VN"
@@ -220,9 +223,10 @@ def check_joint_ranges(system: CArmSystem, q: np.ndarray, option: str) -> None:
 
 
 def format_joints(system: CArmSystem, q, digits: int = 3, sign: bool = True) -> str:
-    """``"name=+1.000 mm, name=-2.500°, ..."`` for q (nq,) in m/rad."""
+    """``"name=+1.000 mm, name=-2.500°, ..."`` for q (nq,) in m/rad (a value that rounds to zero prints as
+    +0.000, never -0.000)."""
     spec = f"{'+' if sign else ''}.{digits}f"
-    return ", ".join(f"{n}={v:{spec}}{' mm' if u == 'mm' else '°'}"
+    return ", ".join(f"{n}={round(float(v), digits) + 0.0:{spec}}{' mm' if u == 'mm' else '°'}"
                      for n, u, v in zip(system.joint_names, joint_units(system), np.asarray(q) * to_cli_units(system)))
 
 
@@ -264,6 +268,8 @@ def read_pose(path: str, option: str) -> np.ndarray:
     written in float32) is projected onto the nearest rigid transform, with a note on stderr
     (:func:`rigid_pose`).
     """
+    if not Path(path).is_file():
+        raise InvalidPoseError(f"{option} {path}: no such file")
     if Path(path).suffix.lower() == ".json":
         T = _read_json_pose(path, option)
     else:

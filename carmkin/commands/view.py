@@ -129,8 +129,6 @@ def _serve(system, args, q, q_target, T_target) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from carmkin.viz import CArmViewer
-
     system = system_from_args(args)
     q = parse_joints(args.q_mm_deg, system, JOINTS_FLAG) if args.q_mm_deg else None  # every input checked before any work
     q_target = parse_joints(args.to_q_mm_deg, system, "--to-q-mm-deg") if args.to_q_mm_deg else None
@@ -144,6 +142,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"table top: upper surface at Y0 = {table_top_y(system) * MM_PER_M:+.1f} mm (Y0 points down); patient: "
               f"{describe_patient(patient, args.patient_position)}")
     if args.html or args.png:
+        from carmkin.viz import CArmViewer  # meshcat and the viewer (a second) only once every input is checked
+
         viewer = CArmViewer(system, q=q)
         _draw(viewer, args, q_target, T_target, patient)
         _write_static(viewer, args)

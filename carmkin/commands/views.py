@@ -50,7 +50,7 @@ def register(parser: argparse.ArgumentParser) -> None:
     plan.add_argument("--segment-mm", metavar="X1,Y1,Z1,X2,Y2,Z2",
                       help="a segment (vessel, screw; table frame, mm): plan its foreshortening-free view with the "
                            "most clearance, or the one nearest --primary-deg/--secondary-deg when given")
-    plan.add_argument("--distance-mm", type=common.number(0.0, 10000.0, open_minimum=True, unit="mm"),
+    plan.add_argument("--distance-mm", type=common.number(common.MIN_DISTANCE_MM, 10000.0, unit="mm"),
                       help="source-to-target distance (mm; default: free)")
     plan.add_argument("--rotation-deg", type=common.number(-180.0, 180.0, unit="deg"),
                       help="detector rotation about the beam (deg, as the plan prints it; default: free)")
