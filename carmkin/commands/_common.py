@@ -375,6 +375,17 @@ def number(minimum: float | None = None, maximum: float | None = None, open_mini
     return parse
 
 
+def patient_position(text: str) -> str:
+    """argparse type: a DICOM Patient Position code (``hfs`` reads as HFS), or the option's error naming the codes."""
+    from carmkin.imaging.projection import PATIENT_POSITIONS
+
+    code = str(text).strip().upper()
+    if code not in PATIENT_POSITIONS:
+        raise argparse.ArgumentTypeError(f"expected a DICOM patient position ({', '.join(PATIENT_POSITIONS)}), "
+                                         f"got {text!r}")
+    return code
+
+
 def _bounds(minimum, maximum, open_minimum: bool = False, open_maximum: bool = False) -> str:
     low = None if minimum is None else f"{'>' if open_minimum else '>='} {minimum:g}"
     high = None if maximum is None else f"{'<' if open_maximum else '<='} {maximum:g}"

@@ -23,7 +23,7 @@ def add_patient_arguments(parser, default: str = "parametric") -> None:
 
     parser.add_argument("--patient", choices=("parametric", "none"), default=default,
                         help=f"a parametric patient lying on the table, or none (default {default})")
-    parser.add_argument("--patient-position", default="HFS", metavar="CODE",
+    parser.add_argument("--patient-position", default="HFS", metavar="CODE", type=common.patient_position,
                         help="DICOM Patient Position (HFS, HFP, HFDR, HFDL, FFS, FFP, FFDR, FFDL; default HFS)")
     parser.add_argument("--patient-height-mm", type=common.number(400.0, 2800.0, unit="mm"), default=1750.0,
                         help="body height (mm, default 1750)")

@@ -111,3 +111,34 @@ def test_panorama_prints_plain_numbers_with_units(capsys):
     moves = next(line for line in out.splitlines() if line.startswith("table translations"))
     values = moves.split(": ", 1)[1]
     assert re.fullmatch(r"\(([+-]\d+\.\d\d)(, [+-]\d+\.\d\d)*\)", values), moves
+
+
+def test_dicom_prints_no_minus_zero_and_a_space_before_mm(capsys):
+    """Finding: "TableTopVerticalPosition: -0.000 mm", "table X/Y/Z to isocentre -100.000, 200.000, -0.000 mm"."""
+    code, out, _ = cli(["dicom"], capsys)
+    assert code == 0 and "-0.000" not in out and "TableTopVerticalPosition: 0.000 mm" in out
+
+
+def test_the_table_study_names_its_time_column():
+    """Finding: `workspace --table-dofs compare` headed its time column "s"."""
+    from carmkin.studies.table_workspace import ModelReach, table_rows
+
+    rows = table_rows([ModelReach("none", np.array([True, False]), 0.25)])
+    assert rows[0].split()[-2:] == ["time", "(s)"] and rows[1].split()[-2:] == ["50.0%", "0.2"]
+
+
+@pytest.mark.parametrize("argv", [["views", "plan", "--standard", "AP", "--patient-position", "XYZ"],
+                                  ["dicom", "--patient-position", "xyz"], ["project", "--patient-position", "up"]])
+def test_a_bad_patient_position_names_the_option_and_the_codes(argv, capsys):
+    """Finding: `views plan --patient-position XYZ` said "position must be one of ..." without the option."""
+    code, out, err = cli(argv, capsys)
+    assert code == 2 and not out
+    assert_one_line_error(err, "--patient-position", "HFS, HFP, HFDR, HFDL, FFS, FFP, FFDR, FFDL")
+
+
+def test_a_zero_angle_is_neither_rao_nor_cau(capsys):
+    """Finding: `dicom --patient-position ffs` printed "Primary Angle -0.0000° (RAO), Secondary Angle -0.0000° (CAU)"
+    for a frontal view (rounding noise of -1e-15° chose the side)."""
+    for position in ("hfs", "ffs"):
+        code, out, _ = cli(["dicom", "--patient-position", position], capsys)
+        assert code == 0 and "Primary Angle 0.0000° (LAO), Secondary Angle 0.0000° (CRA)" in out, out
