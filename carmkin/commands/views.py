@@ -155,7 +155,7 @@ def _report(args, system, plan, position) -> int:
     patient = None if isinstance(position, str) else position
     print(_scene.describe_scene(system, plan.view.target, patient, getattr(patient, "position", position)))
     _print_plan(system, plan, position)
-    common.write_json(args, _plan_json(system, plan, position))
+    common.write_json(args, {"preset": system.name, **_plan_json(system, plan, position)})
     shown = plan.q if plan.success else (plan.nearest.q if plan.nearest is not None else None)
     if shown is not None:
         _scene.write_figures(args, system, shown, patient, plan.view.target,
@@ -258,7 +258,7 @@ def _map(args: argparse.Namespace) -> int:
                   "binding": str(m.binding[i, j]),
                   "q": common.joints_json(system, m.q[i, j]) if m.reachable[i, j] else None}
                  for i, p in enumerate(m.primary_deg) for j, s in enumerate(m.secondary_deg)]
-        common.write_json(args, {"target_mm": list(target * MM), "cells": cells})
+        common.write_json(args, {"preset": system.name, "target_mm": list(target * MM), "cells": cells})
     return 0
 
 

@@ -142,3 +142,15 @@ def test_a_zero_angle_is_neither_rao_nor_cau(capsys):
     for position in ("hfs", "ffs"):
         code, out, _ = cli(["dicom", "--patient-position", position], capsys)
         assert code == 0 and "Primary Angle 0.0000° (LAO), Secondary Angle 0.0000° (CRA)" in out, out
+
+
+@pytest.mark.parametrize("argv", [["views", "plan", "--standard", "AP"], ["views", "map"], ["dicom"], ["project"],
+                                  ["ik", "--pose=193,406,342,67.5,-84.2,59.8"], ["singularity"]])
+def test_the_json_of_a_plan_names_its_preset(argv, capsys):
+    """Finding: `views plan --json -` and `views map --json` left out the preset that `ik`, `dicom`, `project`...
+    name, so a saved plan could not say which C-arm it is for."""
+    import json
+
+    code, out, _ = cli([*argv, "--json", "-"], capsys)
+    assert code in (0, 1)
+    assert json.loads(out)["preset"] == "siremobile-iso-c3d"
