@@ -149,3 +149,27 @@ def test_a_body_sized_box_in_m_is_taken_and_the_same_in_mm_is_not(size_m):
     assert Obstacle.box("b", size_m).size == tuple(size_m)
     with pytest.raises(CollisionSceneError, match=r"given in mm\?"):  # 20 mm and more read as m: beyond 10 m
         Obstacle.box("b", [s * 1000.0 for s in size_m])
+
+
+@settings(max_examples=40)
+@given(st.lists(st.floats(-2.0, 2.0), min_size=3, max_size=3))
+def test_a_target_in_mm_is_refused_when_no_metre_target_could_mean_it(target_m):
+    from carmkin.validation import MAX_DISTANCE, target_point
+
+    assert target_point(target_m, "target").tolist() == target_m
+    target_mm = [v * 1000.0 for v in target_m]
+    if max(map(abs, target_mm)) <= MAX_DISTANCE:  # within 10 mm of the origin: a plausible point in m too
+        target_point(target_mm, "target")
+        return
+    with pytest.raises(CarmkinError, match=r"target must lie within 10 m .* given in mm\? "):
+        target_point(target_mm, "target")
+
+
+def test_plan_sweep_names_a_target_in_mm_not_a_joint():
+    """A sweep around (0, -100, 0) 'mm': refused on the target, before the planner's own joint values could be
+    blamed (they reach 100 m when the target does)."""
+    from carmkin.errors import SweepError
+    from carmkin.sweeps import plan_sweep
+
+    with pytest.raises(SweepError, match=r"^target .*given in mm\? 100 mm = 0.1 m"):
+        plan_sweep(PRESET, [0.0, -100.0, 0.0], n_views=10)
