@@ -29,6 +29,9 @@ from . import commands
 #: Order in which the subcommands are listed by ``--help``; modules not named here come last.
 ORDER = ("verify", "ik", "urdf", "workspace", "singularity", "panorama", "view")
 USAGE_ERROR, INTERNAL_ERROR, INTERRUPTED = 2, 3, 130
+#: Exit status when stdout was closed early (``carmkin workspace | head``): the shell's status of a process
+#: ended by SIGPIPE (128 + 13); the command stops quietly, as ``yes | head`` does.
+BROKEN_PIPE = 141
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -93,6 +96,15 @@ def _name_every_parser(parser: argparse.ArgumentParser) -> None:
                 _name_every_parser(child)
 
 
+def _quiet_stdout() -> None:
+    """Point stdout's descriptor at the null device, so that the interpreter's last flush of a closed pipe
+    prints no second error (the recipe of the Python docs on SIGPIPE)."""
+    try:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):  # a stdout without a descriptor (captured in tests)
+        pass
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     name = getattr(args, "prog", f"carmkin {args.command}")
@@ -113,6 +125,9 @@ def main(argv: list[str] | None = None) -> int:
     except CarmkinError as exc:
         print(f"{prefix} {_one_line(exc)}", file=sys.stderr)
         return USAGE_ERROR
+    except BrokenPipeError:  # stdout closed by the reader: stop quietly, nothing more can be said on it
+        _quiet_stdout()
+        return BROKEN_PIPE
     except OSError as exc:  # a file that cannot be read or written
         where = f" {exc.filename}" if exc.filename else ""
         print(f"{prefix} cannot access{where}: {exc.strerror or _one_line(exc)}", file=sys.stderr)

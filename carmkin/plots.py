@@ -88,7 +88,8 @@ def singularity_maps(system, q, path=None, pair: tuple[int, int] = (4, 5), n: in
 
 # --- a planned configuration with the patient (carmkin views plan --png) -------------------------------------
 #: Colours of the scene figure's parts.
-SCENE_COLOURS = {"table": "#8c8c8c", "patient": "#e8b98f", "carm": "#1f4e9c", "beam": "#d62728", "target": "#d62728"}
+SCENE_COLOURS = {"table": "#8c8c8c", "patient": "#e8b98f", "carm": "#1f4e9c", "beam": "#d62728", "target": "#d62728",
+                 "closest": "#2ca02c", "collision": "#ff0000"}
 
 
 def _obstacle_corners(obstacle) -> np.ndarray:
@@ -132,10 +133,16 @@ def scene_figure(system, q, patient=None, target=None, path=None, title: str = "
     """Two orthographic views of the table frame (m shown as mm): the side view (Z0 across, Y0 up the page: Y0
     points down) and the end view (X0 across): the table top, the patient's bodies (their bounding boxes' outlines),
     the C-arm's DH frame origins joined in chain order, the X-ray beam from the source to the detector centre and
-    the ``target`` (3,) m. ``patient``: None, a list of Obstacle or a model with ``obstacles()``."""
+    the ``target`` (3,) m. ``patient``: None, a list of Obstacle or a model with ``obstacles()``.
+
+    The closest pair of :class:`carmkin.world.World` (C-arm part against table top, patient or floor) is drawn
+    as a line between its nearest points, labelled with its distance; when the C-arm collides (a pair at or
+    below 0 m), the line is red and so is the outline of every body it collides with (table top or patient
+    body), so that the picture shows the collision a report of the same configuration states."""
     from matplotlib.patches import Polygon
 
-    from carmkin.world.obstacles import as_obstacles
+    from carmkin.world import World
+    from carmkin.world.obstacles import as_obstacles, link_of
 
     q = np.asarray(q, dtype=float)
     frames = np.asarray(system.dh_frames(q))[:, :3, 3]
@@ -144,23 +151,35 @@ def scene_figure(system, q, patient=None, target=None, path=None, title: str = "
     detector = source + system.carm.source_to_detector * T[:3, 2]
     top = np.eye(4)
     top[:3, 3] = system.table.top_center
-    bodies = [("table", _obstacle_corners(type("Top", (), {"shape": "box", "size": system.table.top_size,
-                                                          "pose": top})()))]
-    bodies += [("patient", _obstacle_corners(o)) for o in as_obstacles(patient)]
+    bodies = [("table", "table", _obstacle_corners(type("Top", (), {"shape": "box", "size": system.table.top_size,
+                                                                    "pose": top})()))]
+    bodies += [("patient", o.name, _obstacle_corners(o)) for o in as_obstacles(patient)]
+    world = World(system, patient)
+    distances = world.distances(q=q)
+    nearest = int(np.argmin(distances))
+    near = world.proximity(distances, np.inf)  # every pair's witness points, in pair order
+    witness = np.vstack((near.point1[nearest], near.point2[nearest])) * 1e3
+    collided = {link_of(b) for (_, b), d in zip(world.pairs, distances.tolist()) if d <= 0.0}
+    part, body = (link_of(n) for n in world.pairs[nearest])
+    gap = f"{part} to {body}: {distances[nearest] * 1e3:.1f} mm"
+    closest_label = f"COLLISION {gap}" if distances[nearest] <= 0.0 else f"closest: {gap}"
     fig = figure((11, 4.8))
     views = (("side view: Z0 (mm) along the table", 2), ("end view: X0 (mm) across the table", 0))
     for k, (label, axis) in enumerate(views):
         ax = fig.add_subplot(1, 2, k + 1)
-        for kind, corners in bodies:
+        for kind, name, corners in bodies:
             outline = _hull(corners[:, [axis, 1]] * 1e3)
-            ax.add_patch(Polygon(outline, closed=True, facecolor=SCENE_COLOURS[kind], edgecolor="k", alpha=0.5,
-                                 lw=0.5, label=kind))
+            hit = name in collided
+            ax.add_patch(Polygon(outline, closed=True, facecolor=SCENE_COLOURS[kind], alpha=0.5, label=kind, gid=name,
+                                 edgecolor=SCENE_COLOURS["collision"] if hit else "k", lw=2.0 if hit else 0.5))
         chain = np.vstack((np.zeros(3), frames, source)) * 1e3
         ax.plot(chain[:, axis], chain[:, 1], "-o", color=SCENE_COLOURS["carm"], ms=3, lw=2, label="C-arm (DH frames)")
         beam = np.vstack((source, detector)) * 1e3
         ax.plot(beam[:, axis], beam[:, 1], "--", color=SCENE_COLOURS["beam"], lw=1.5, label="beam")
         ax.plot(*beam[1, [axis, 1]], "s", color=SCENE_COLOURS["beam"], ms=7, label="detector")
         ax.plot(*beam[0, [axis, 1]], "^", color=SCENE_COLOURS["beam"], ms=7, label="source")
+        ax.plot(witness[:, axis], witness[:, 1], "-", marker=".", lw=2.5, label=closest_label,
+                color=SCENE_COLOURS["collision" if collided else "closest"])
         if target is not None:
             t = np.asarray(target, dtype=float) * 1e3
             ax.plot(t[axis], t[1], "x", color=SCENE_COLOURS["target"], ms=12, mew=2.5, label="target")

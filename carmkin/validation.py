@@ -323,6 +323,18 @@ def distance(value, name: str, *, error: type[CarmkinError] = InvalidParameterEr
     return real_scalar(value, name, error=error, low=low, high=high, unit=unit)
 
 
+def target_point(value, name: str, *, error: type[CarmkinError] = InvalidParameterError) -> np.ndarray:
+    """``value`` as a point (3,) in m, table frame, each coordinate within :data:`MAX_DISTANCE` (10 m: no C-arm
+    reaches farther from its table), or ``error``; beyond it the message names the likely unit slip
+    (``(0, -100, 0)`` for 100 mm above the origin: "given in mm? 100 mm = 0.1 m")."""
+    point = real_array(value, name, (3,), error=error, unit="m")
+    far = float(np.abs(point).max())
+    if far > MAX_DISTANCE:
+        raise error(f"{name} must lie within {MAX_DISTANCE:g} m of the table frame's origin along each axis, got "
+                    f"{point.tolist()} m{unit_slip(far, 0.0, MAX_DISTANCE, 'm')}")
+    return point
+
+
 def joint_index(value, name: str, nq: int, *, names: Sequence[str] | None = None,
                 error: type[CarmkinError] = InvalidParameterError) -> int:
     """``value`` as a joint index ``0 <= i < nq``: an integer (no bool, no float, no negative alias) or, with

@@ -59,7 +59,7 @@ def _pin_jacobian(system, q):
 
 
 def _reached(system, q, T, tol=1e-6) -> bool:
-    return bool(np.all(np.isfinite(q))) and g.close(system.fk(q), T, atol=tol)
+    return bool(np.all(np.isfinite(q))) and g.close(system.fk(q, check_units=False), T, atol=tol)
 
 
 # --- model and IK ---------------------------------------------------------------------------------------

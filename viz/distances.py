@@ -1,7 +1,7 @@
 """Distances between the C-arm and its surroundings, for colouring the viewer.
 
 The pairs are those of the one world (:class:`carmkin.world.World`: every moving C-arm
-part against the table top and the floor, the column against the floor left out), the same pairs the
+part against the table top, the patient's bodies and the floor, the column against the floor left out), the same pairs the
 planner and the §4.4.3 validity report use: what the screen paints red is what validity calls a collision.
 Signed distances (coal through Pinocchio), metres, witness points in the table frame 0.
 """
@@ -41,14 +41,15 @@ class PairDistance:
 
 
 class DistanceChecker:
-    """Signed distances of the C-arm parts to the table top and the floor (table frame, metres).
+    """Signed distances of the C-arm parts to the table top, the floor and the patient, if any (table frame,
+    metres; ``patient`` as :class:`carmkin.world.World` takes it).
 
-    ``scene`` is the :class:`carmkin.world.World` of the system; ``collision_model`` and
+    ``scene`` is the :class:`carmkin.world.World` of the system and patient; ``collision_model`` and
     ``collision_data`` are its geometry model and data, placed at the configuration of the last call.
     """
 
-    def __init__(self, system: CArmSystem) -> None:
-        self.scene = World(system)
+    def __init__(self, system: CArmSystem, patient=None) -> None:
+        self.scene = World(system, patient)
         self.model = self.scene.model
         self.collision_model = self.scene.geometry_model
         self.collision_data = self.scene.geometry_data

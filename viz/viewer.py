@@ -11,7 +11,8 @@ relative to the table).
 Node layout under ``/meshcat/carmkin``: ``robot`` (Pinocchio's visuals; collisions hidden), ``cone`` (the
 X-ray pyramid at ``xray_source``), ``frames/table`` and ``frames/xray_source`` (triads), ``ghost`` (the
 robot and cone at a target configuration), ``targets/<name>`` (source housing + cone at a 4x4 pose),
-``shots/<name>/<i>`` (cones of planned shots), ``distances`` (C-arm parts near the table/floor).
+``shots/<name>/<i>`` (cones of planned shots), ``distances`` (C-arm parts near the table/floor/patient, and
+``distances/collided/<body>``: the bodies they collide with, red).
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from carmkin.errors import InvalidConfigurationError, VisualizationError
 from carmkin.model import kinematics
 from carmkin.model.system import CArmSystem
 from carmkin.transforms import check_rigid_transform
+from carmkin.world.obstacles import link_of
 
 from . import shapes
 from .distances import DistanceChecker, PairDistance, distance_color
@@ -35,6 +37,8 @@ from .static import RecordingWindow, offline_visualizer
 ROOT = "carmkin"
 #: Camera position in the scene frame (m), looking at the table origin: front-right, above.
 CAMERA_OFFSET = (1.4, 1.7, 0.9)
+#: Colour (RGB in [0, 1]) of a body the C-arm is in collision with (table top, patient body), over its own.
+COLLIDED_RGB = (0.9, 0.0, 0.0)
 #: Links left out of the ghost copy: the environment, which does not move with the C-arm joints.
 NOT_IN_GHOST = ("table", "floor")
 
@@ -88,6 +92,7 @@ class CArmViewer:
         self._scratch = model.createData()  # for configurations that are not displayed (ghost cone, distances)
         self._ghost: MeshcatVisualizer | None = None
         self._distances: DistanceChecker | None = None
+        self._distances_patient: int | None = None  # id() of the patient the checker was built with
         self.q = check_configuration(system, (system.lower + system.upper) / 2 if q is None else q)
         self.scene_in_world = np.eye(4)  # constant rotation, see the module docstring
         self.scene_in_world[:3, :3] = self._frame_pose(pin.neutral(model), "carm_cart", self._scratch)[:3, :3].T
@@ -149,16 +154,21 @@ class CArmViewer:
             node[str(i)].set_transform(pose)
 
     # --- distances ------------------------------------------------------------------------------------
-    def show_distances(self, q=None, margin: float = 0.1) -> list[PairDistance]:
-        """Colour the C-arm parts within ``margin`` (m) of the table top or the floor, at ``q`` (default: current).
+    def show_distances(self, q=None, margin: float = 0.1, patient=None) -> list[PairDistance]:
+        """Colour the C-arm parts within ``margin`` (m) of the table top, the floor or the ``patient`` (as
+        :class:`carmkin.world.World` takes it; draw it with :func:`carmkin.viz.views.draw_patient`), at ``q``
+        (default: current).
 
         Each close part gets a translucent overlay, red when in collision (distance <= 0) through orange to
-        yellow at ``margin``, and a line between the nearest points. Returns all pair distances.
+        yellow at ``margin``, and a line between the nearest points. A body the C-arm collides with (a patient
+        body, the table top) is painted red too (:data:`COLLIDED_RGB`), so that a picture shows every collision
+        the distances report. Returns all pair distances.
         """
         if not margin > 0:
             raise VisualizationError(f"margin must be > 0 m, got {margin}")
-        if self._distances is None:
-            self._distances = DistanceChecker(self.system)
+        key = id(patient) if patient is not None else None
+        if self._distances is None or self._distances_patient != key:
+            self._distances, self._distances_patient = DistanceChecker(self.system, patient), key
         checker = self._distances
         if q is None:  # the displayed configuration: its kinematics is in self.data already
             pairs = checker.distances(data=self.data)
@@ -171,17 +181,22 @@ class CArmViewer:
         for pair in pairs:
             if pair.distance < margin and (pair.part not in closest or pair.distance < closest[pair.part].distance):
                 closest[pair.part] = pair
-        geometry_data = checker.collision_data  # placed at this configuration by checker.distances
-        for part, pair in closest.items():
-            gid = checker.collision_model.getGeometryId(part)
+        for part, pair in closest.items():  # checker.collision_data is placed at this configuration
             color = shapes.hex_color(distance_color(pair.distance, margin))
-            obj = self.robot.loadPrimitive(checker.collision_model.geometryObjects[gid])
-            node[part].set_object(obj, mg.MeshLambertMaterial(color=color, opacity=0.6, transparent=True))
-            node[part].set_transform(geometry_data.oMg[gid].homogeneous @ np.diag([1.03, 1.03, 1.03, 1.0]))
+            self._overlay(node[part], checker, part, color)
             segment = np.array([pair.point_part, pair.point_obstacle], dtype=np.float32).T
             node[f"{part}_to_{pair.obstacle}"].set_object(
                 mg.LineSegments(mg.PointsGeometry(segment), mg.LineBasicMaterial(color=color)))
+        for obstacle in sorted({p.obstacle for p in pairs if p.in_collision and link_of(p.obstacle) != "floor"}):
+            self._overlay(node[f"collided/{obstacle}"], checker, obstacle, shapes.hex_color(COLLIDED_RGB))
         return pairs
+
+    def _overlay(self, node, checker: DistanceChecker, name: str, color: int) -> None:
+        """A translucent copy of collision geometry ``name``, 3 % larger, where ``checker`` last placed it."""
+        gid = checker.collision_model.getGeometryId(name)
+        obj = self.robot.loadPrimitive(checker.collision_model.geometryObjects[gid])
+        node.set_object(obj, mg.MeshLambertMaterial(color=color, opacity=0.6, transparent=True))
+        node.set_transform(checker.collision_data.oMg[gid].homogeneous @ np.diag([1.03, 1.03, 1.03, 1.0]))
 
     # --- moves ----------------------------------------------------------------------------------------
     def animate(self, q_to, q_from=None, frames: int = 40, fps: float = 20.0, repetitions: int = 1,

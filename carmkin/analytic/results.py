@@ -174,6 +174,6 @@ class BatchResult:
         out = np.full(2 * n, np.nan)
         if np.any(finite):
             poses = np.broadcast_to(self._poses[None], (2, n, 4, 4)).reshape(2 * n, 4, 4)
-            out[finite] = np.maximum(*pose_error(self._system.fk(flat[finite]), poses[finite]))
+            out[finite] = np.maximum(*pose_error(self._system.fk(flat[finite], check_units=False), poses[finite]))
         return out.reshape(2, n)
 

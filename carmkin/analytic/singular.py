@@ -99,7 +99,7 @@ def family_residuals(ik: ClosedFormIK, q: np.ndarray, T: np.ndarray) -> np.ndarr
     if np.any(finite):
         with np.errstate(invalid="ignore", over="ignore"):  # absurd translations: an inf residual, refused
             poses = np.broadcast_to(T[None], (2, n, 4, 4)).reshape(2 * n, 4, 4)[finite]
-            out[finite] = np.maximum(*pose_error(ik.system.fk(flat[finite]), poses))
+            out[finite] = np.maximum(*pose_error(ik.system.fk(flat[finite], check_units=False), poses))
     return out.reshape(2, n)
 
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import shlex
 import sys
 from pathlib import Path
 
@@ -34,6 +35,9 @@ from carmkin.validation import unit_slip
 DEFAULT_PRESET = "siremobile-iso-c3d"
 #: Factors from SI to the command line's units: m -> mm, rad -> degrees.
 MM_PER_M = 1000.0
+#: Smallest distance (mm) accepted by a distance option (source to target, source to object plane): 10 mm, less
+#: than any source housing allows. A value below it is a distance in m (``0.6`` for 600 mm), refused naming it.
+MIN_DISTANCE_MM = 10.0
 DEG_PER_RAD = 180.0 / math.pi
 #: Metavar of a joint-vector option: one value per joint of the preset, mm or degrees.
 JOINTS_METAVAR = "V1,...,VN"
@@ -92,9 +96,9 @@ def add_alias(parser: argparse.ArgumentParser, old: str, new: str, dest: str, **
 
 
 # --- the flag grammar (docs/cli.md): figures and JSON ---------------------------------------------------------
-#: argparse dests whose value is a file a command writes: checked (folder created, not a folder) before the work
+#: argparse dests whose value is a file a command writes: checked (folder there, not a folder) before the work
 #: starts, by :func:`check_output_paths` (``carmkin.cli.main`` calls it). An output *folder* (``--out DIR``) is
-#: the command's to check.
+#: the command's to check, with :func:`output_folder`.
 OUTPUT_DESTS = ("json", "png", "html", "output", "rtk_xml", "astra", "tigre", "write_xa", "write_enhanced")
 #: ``--json -``: the JSON goes to stdout instead of the text report (notes and errors stay on stderr).
 STDOUT = "-"
@@ -117,7 +121,7 @@ def add_png_argument(parser: argparse.ArgumentParser, what: str, old_names: tupl
 
 def check_output_paths(args: argparse.Namespace) -> None:
     """Every output path of ``args`` (:data:`OUTPUT_DESTS`) ready to be written before any work: its folder
-    created (a note says so) or :class:`UsageError` naming the option. ``--json -`` is stdout."""
+    there, or :class:`UsageError` naming the option (:func:`output_path`). ``--json -`` is stdout."""
     for dest in OUTPUT_DESTS:
         value = getattr(args, dest, None)
         if isinstance(value, (str, Path)) and str(value) != STDOUT:
@@ -219,9 +223,10 @@ def check_joint_ranges(system: CArmSystem, q: np.ndarray, option: str) -> None:
 
 
 def format_joints(system: CArmSystem, q, digits: int = 3, sign: bool = True) -> str:
-    """``"name=+1.000 mm, name=-2.500°, ..."`` for q (nq,) in m/rad."""
+    """``"name=+1.000 mm, name=-2.500°, ..."`` for q (nq,) in m/rad (a value that rounds to zero prints as
+    +0.000, never -0.000)."""
     spec = f"{'+' if sign else ''}.{digits}f"
-    return ", ".join(f"{n}={v:{spec}}{' mm' if u == 'mm' else '°'}"
+    return ", ".join(f"{n}={round(float(v), digits) + 0.0:{spec}}{' mm' if u == 'mm' else '°'}"
                      for n, u, v in zip(system.joint_names, joint_units(system), np.asarray(q) * to_cli_units(system)))
 
 
@@ -263,6 +268,8 @@ def read_pose(path: str, option: str) -> np.ndarray:
     written in float32) is projected onto the nearest rigid transform, with a note on stderr
     (:func:`rigid_pose`).
     """
+    if not Path(path).is_file():
+        raise InvalidPoseError(f"{option} {path}: no such file")
     if Path(path).suffix.lower() == ".json":
         T = _read_json_pose(path, option)
     else:
@@ -368,6 +375,17 @@ def number(minimum: float | None = None, maximum: float | None = None, open_mini
     return parse
 
 
+def patient_position(text: str) -> str:
+    """argparse type: a DICOM Patient Position code (``hfs`` reads as HFS), or the option's error naming the codes."""
+    from carmkin.imaging.projection import PATIENT_POSITIONS
+
+    code = str(text).strip().upper()
+    if code not in PATIENT_POSITIONS:
+        raise argparse.ArgumentTypeError(f"expected a DICOM patient position ({', '.join(PATIENT_POSITIONS)}), "
+                                         f"got {text!r}")
+    return code
+
+
 def _bounds(minimum, maximum, open_minimum: bool = False, open_maximum: bool = False) -> str:
     low = None if minimum is None else f"{'>' if open_minimum else '>='} {minimum:g}"
     high = None if maximum is None else f"{'<' if open_maximum else '<='} {maximum:g}"
@@ -380,25 +398,40 @@ def _unit(unit: str) -> str:
 
 # --- output files ---------------------------------------------------------------------------------------
 def output_path(path: str, option: str, suffixes: tuple[str, ...] | None = None) -> Path:
-    """``path`` ready to be written: its folder created if missing, with one line on stderr that says so;
-    :class:`UsageError` naming ``option`` if the suffix is not one of ``suffixes`` or the folder cannot be made."""
+    """``path`` ready to be written, or :class:`UsageError` naming ``option``: the suffix one of ``suffixes``,
+    not a folder, and its folder there. A missing folder is refused, never created (a typo in a path must not
+    leave folders behind, e.g. ``/nonexistent`` as root): the message names it and the ``mkdir -p`` to run."""
     target = Path(path)
     if suffixes is not None and target.suffix.lower().lstrip(".") not in suffixes:
         raise UsageError(f"{option} {path}: the file extension must be one of {', '.join('.' + s for s in suffixes)}")
     if target.is_dir():
         raise UsageError(f"{option} {path}: is a folder, expected a file name")
-    if target.parent.is_dir():
-        return target
-    blocker = next((p for p in (target.parent, *target.parent.parents) if p.exists()), None)
-    if blocker is not None and not blocker.is_dir():
-        raise UsageError(f"{option} {path}: cannot create the folder {str(target.parent)!r} "
-                         f"({str(blocker)!r} is a file)")
-    try:
-        target.parent.mkdir(parents=True)
-    except OSError as exc:
-        raise UsageError(f"{option} {path}: cannot create the folder {str(target.parent)!r} ({exc.strerror})") from None
-    print(f"note: {option}: created the folder {str(target.parent)!r}", file=sys.stderr)
+    if not target.parent.is_dir():
+        raise UsageError(f"{option} {path}: {_missing_folder(target.parent)}")
     return target
+
+
+def output_folder(path: str, option: str) -> Path:
+    """``path`` as an output *folder* (``--out DIR``), or :class:`UsageError` naming ``option``: a folder, or
+    a name not yet taken whose parent folder is there (the command creates that one folder, as ``mkdir``
+    would); a missing parent is refused, as :func:`output_path` refuses a missing folder."""
+    target = Path(path)
+    if target.exists() and not target.is_dir():
+        raise UsageError(f"{option} {path}: is a file, expected a folder")
+    parent = target.absolute().parent
+    if not target.exists() and not parent.is_dir():
+        raise UsageError(f"{option} {path}: {_missing_folder(parent)}")
+    return target
+
+
+def _missing_folder(folder: Path) -> str:
+    """Why ``folder`` cannot hold an output: the first part of it that is a file, or that it does not exist."""
+    blocker = next((p for p in (folder, *folder.parents) if p.exists()), None)
+    if blocker == folder and not folder.is_dir():
+        return f"{str(folder)!r} is a file, not a folder"
+    if blocker is not None and not blocker.is_dir():
+        return f"the folder {str(folder)!r} cannot exist ({str(blocker)!r} is a file)"
+    return f"the folder {str(folder)!r} does not exist (create it first: mkdir -p {shlex.quote(str(folder))})"
 
 
 def plot_formats() -> tuple[str, ...]:

@@ -11,6 +11,9 @@ import numpy as np
 MM = 1000.0
 #: Radius (m) of the sphere that marks the target in the viewer page.
 TARGET_MARK_M = 0.012
+#: Distance (m) within which the viewer page colours a C-arm part by its distance to the table, patient or floor
+#: (as ``carmkin view --margin-mm``'s default).
+COLOUR_MARGIN_M = 0.1
 
 
 def add_patient_arguments(parser, default: str = "parametric") -> None:
@@ -20,7 +23,7 @@ def add_patient_arguments(parser, default: str = "parametric") -> None:
 
     parser.add_argument("--patient", choices=("parametric", "none"), default=default,
                         help=f"a parametric patient lying on the table, or none (default {default})")
-    parser.add_argument("--patient-position", default="HFS", metavar="CODE",
+    parser.add_argument("--patient-position", default="HFS", metavar="CODE", type=common.patient_position,
                         help="DICOM Patient Position (HFS, HFP, HFDR, HFDL, FFS, FFP, FFDR, FFDL; default HFS)")
     parser.add_argument("--patient-height-mm", type=common.number(400.0, 2800.0, unit="mm"), default=1750.0,
                         help="body height (mm, default 1750)")
@@ -88,7 +91,9 @@ def write_figures(args, system, q, patient, target, title: str = "") -> None:
 
 
 def scene_page(system, q, patient=None, target=None) -> str:
-    """A static viewer page: the C-arm at q with its X-ray cone, the table, the patient and the target."""
+    """A static viewer page: the C-arm at q with its X-ray cone, the table, the patient and the target; the C-arm
+    parts within :data:`COLOUR_MARGIN_M` of the table, patient or floor coloured by distance, and every body the
+    C-arm collides with painted red (:meth:`carmkin.viz.CArmViewer.show_distances`)."""
     from carmkin.viz import CArmViewer
     from carmkin.viz.views import draw_patient
 
@@ -97,6 +102,7 @@ def scene_page(system, q, patient=None, target=None) -> str:
     viewer = CArmViewer(system, q=q)
     if patient is not None:
         draw_patient(viewer, patient)
+    viewer.show_distances(margin=COLOUR_MARGIN_M, patient=patient)  # collisions red, as the text reports them
     if target is not None:
         mark = np.eye(4)
         mark[:3, 3] = target

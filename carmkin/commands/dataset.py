@@ -36,8 +36,8 @@ def register(parser: argparse.ArgumentParser) -> None:
                      help="standard-views, reachable-sphere, sweep or joint-uniform")
     gen.add_argument("--n", type=common.integer(1), required=True, help="number of images")
     gen.add_argument("--size", required=True, metavar="WxH", help="image size in pixels; must bin the detector")
-    gen.add_argument("--out", required=True, metavar="DIR", help="dataset folder (created; resumed when it holds "
-                                                                 "this dataset)")
+    gen.add_argument("--out", required=True, metavar="DIR", help="dataset folder (created if its parent folder exists; "
+                                                                 "resumed when it holds this dataset)")
     gen.add_argument("--seed", type=common.integer(0), default=0, help="random seed (default 0)")
     gen.add_argument("--device", choices=("cpu", "cuda"), default=None,
                      help="render on cpu or cuda (default: cuda when torch sees a GPU, else cpu)")
@@ -97,6 +97,7 @@ def run(args: argparse.Namespace) -> int:
         return 0
     from carmkin.patient import ParametricPatient
 
+    common.output_folder(args.out, "--out")  # before any work
     system = common.system_from_args(args)
     device = args.device
     if device is None:

@@ -21,7 +21,8 @@ import math
 
 import numpy as np
 
-from ._common import add_alias, add_json_argument, add_preset_argument, joints_json, system_from_args, write_json
+from ._common import add_alias, add_json_argument, add_preset_argument, joints_json, patient_position, system_from_args, \
+    write_json
 from ._interop import add_configuration_argument, configuration, describe, millimetres
 
 HELP = "XA / Enhanced XA geometry of a configuration, synthetic datasets, moves to a DICOM image's view"
@@ -30,9 +31,9 @@ HELP = "XA / Enhanced XA geometry of a configuration, synthetic datasets, moves 
 def register(parser: argparse.ArgumentParser) -> None:
     add_preset_argument(parser)
     add_configuration_argument(parser, what="configuration (the current one with --read)")
-    parser.add_argument("--patient-position", metavar="CODE",
+    parser.add_argument("--patient-position", metavar="CODE", type=patient_position,
                         help="DICOM patient position (default HFS; with --read only used where the dataset has none)")
-    add_alias(parser, "--patient", "--patient-position", "patient_position", metavar="CODE")
+    add_alias(parser, "--patient", "--patient-position", "patient_position", metavar="CODE", type=patient_position)
     add_json_argument(parser, "the angles, the isocenter geometry and the table position (or, with --read, the moves)")
     parser.add_argument("--positioner-convention", choices=("beam", "literal", "literal-ap2", "literal-ap3",
                                                              "pyskindose"), default="beam",
@@ -61,17 +62,19 @@ def run(args: argparse.Namespace) -> int:
     code = args.patient_position or "HFS"
     patient = dicom.patient_pose(code, origin)
     primary, secondary, rotation = dicom.xa_angles(system.fk(q), patient, convention=args.positioner_convention)
+    # as printed (4 decimals): an angle that rounds to 0 is 0°, neither RAO nor CAU (a -1e-15 must not name a side)
+    primary, secondary, rotation = (round(float(a), 4) + 0.0 for a in (primary, secondary, rotation))
     print(f"XA ({code.upper()}): Positioner Primary Angle {primary:.4f}° ({'LAO' if primary >= 0 else 'RAO'}), "
           f"Secondary Angle {secondary:.4f}° ({'CRA' if secondary >= 0 else 'CAU'}), detector rotation {rotation:.4f}°")
     g = dicom.isocenter_geometry(system, q, convention=args.positioner_convention)
     print(f"Isocenter Reference System: positioner {g.positioner_primary_deg:.4f}°, {g.positioner_secondary_deg:.4f}°, "
           f"detector rotation {g.detector_rotation_deg:.4f}°; table X/Y/Z to isocentre "
-          + ", ".join(f"{v:.3f}" for v in g.table_position_mm)
+          + ", ".join(f"{round(v, 3) + 0.0:.3f}" for v in g.table_position_mm)
           + f" mm; table rotation {g.table_rotation_deg:.4f}°, head tilt {g.table_head_tilt_deg:.4f}°, "
           f"cradle tilt {g.table_cradle_tilt_deg:.4f}°; source to isocentre {g.source_to_isocenter_mm:.3f} mm")
     table = dicom.table_position(system, q)
     for name, value in table.items():
-        print(f"{name}: {value:.3f} mm")
+        print(f"{name}: {round(value, 3) + 0.0:.3f} mm")
     if args.write_xa or args.write_enhanced:
         from carmkin.interop import dicom_io
 
@@ -110,6 +113,6 @@ def _read(system, q, args, origin, ds) -> int:
                       "moves": joints_json(system, result.q - q)})
     print(f"configuration ({getattr(result.path, 'value', result.path)}): {describe(system, result.q)}")
     moves = result.q - q
-    print("moves: " + ", ".join(f"{n} {m * 1e3 if p else math.degrees(m):+.3f}{'mm' if p else '°'}"
+    print("moves: " + ", ".join(f"{n} {m * 1e3 if p else math.degrees(m):+.3f}{' mm' if p else '°'}"
                                 for n, m, p in zip(system.joint_names, moves, system.prismatic)))
     return 0

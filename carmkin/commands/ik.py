@@ -105,7 +105,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"preset {system.name}; det J = {result.det_j:.4g}; branches (* = chosen):")
     for k, (solution, b) in enumerate(zip(result.solutions, branches)):
         mark = "*" if k == result.chosen else " "
-        excess = ", ".join(f"{n} {v:+.4f}" for n, v in b["excess"].items())
+        excess = ", ".join(f"{n.rpartition('_')[0]} {v:+.4f}{' mm' if n.endswith('_mm') else '°'}"
+                           for n, v in b["excess"].items())
         print(f"{mark}{k}  {b['status']}{' (numerical)' if b['numerical'] else ''}"
               f"{'; excess ' + excess if excess else ''}")
         print(f"    joints: {format_joints(system, solution, digits=4)}")

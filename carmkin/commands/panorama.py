@@ -26,6 +26,7 @@ import numpy as np
 
 from ._common import (
     JOINTS_FLAG,
+    MIN_DISTANCE_MM,
     MM_PER_M,
     UsageError,
     add_joints_argument,
@@ -69,7 +70,7 @@ def _add_line(parser: argparse.ArgumentParser) -> None:
                         help="overlap of consecutive shots, fraction of a shot in [0, 1) (default 0)")
     parser.add_argument("--direction-px", metavar="DU,DV",
                         help="panorama direction in pixels (default: the table axis Z0 as seen in the image)")
-    parser.add_argument("--object-distance-mm", type=number(0.0, open_minimum=True, unit="mm"), default=None,
+    parser.add_argument("--object-distance-mm", type=number(MIN_DISTANCE_MM, 10000.0, unit="mm"), default=None,
                         help="distance from the source to the object plane ⟂ to the reference axis "
                         "(default: where the reference axis leaves the table top)")
 
@@ -174,15 +175,20 @@ def _line_args(planner, args):
     return args.length_mm / MM_PER_M, args.overlap, direction, distance
 
 
+def _numbers(values, spec: str) -> str:
+    """``"(+1.0000, +0.0000, -0.5000)"``: each value in ``spec``; a value that rounds to zero prints as +0, never -0."""
+    digits = int(spec.rpartition(".")[2].rstrip("f"))
+    return "(" + ", ".join(f"{round(float(v), digits) + 0.0:{spec}}" for v in np.ravel(values)) + ")"
+
+
 def _print_plan(system, plan) -> None:
     print(f"object plane at {plan.distance * 1e3:.1f} mm from the source, direction "
-          f"{np.array2string(plan.direction, precision=4)} (reference source frame); "
-          f"{len(plan.shots)} shots, overlap {plan.overlap:g}")
+          f"{_numbers(plan.direction, '+.4f')} (unit vector, reference source frame); "
+          f"{len(plan.shots)} shots, overlap {plan.overlap:.0%}")
     for k, (shot, (lo, hi)) in enumerate(zip(plan.shots, plan.extents)):
         _print_shot(system, shot, f"shot {k + 1}")
         print(f"  covers [{lo * 1e3:+.1f}, {hi * 1e3:+.1f}] mm on the object plane")
-    print(f"table translations Δd0 (mm, from the previous shot): "
-          f"{np.array2string(plan.table_translations * 1e3, precision=2)}")
+    print(f"table translations Δd0 (mm, from the previous shot): {_numbers(plan.table_translations * 1e3, '+.2f')}")
     print("plan VALID" if plan.valid else "plan INVALID: " + ", ".join(
         f"shot {k + 1}" for k, s in enumerate(plan.shots) if not s.valid))
 
@@ -252,11 +258,11 @@ def _run_parallax(system, planner, args) -> int:
     if not levels or any(np.any(level < 0) for level in levels):
         raise UsageError(f"--noise needs levels 'MM,DEG;...' with σ >= 0 (mm, deg), got {args.noise!r}")
     plan = planner.plan(*_line_args(planner, args))
-    print(f"{len(plan.shots)} shots, overlap {plan.overlap:g}, object plane at {plan.distance * 1e3:.1f} mm; "
+    print(f"{len(plan.shots)} shots, overlap {plan.overlap:.0%}, object plane at {plan.distance * 1e3:.1f} mm; "
           f"plan {'valid' if plan.valid else 'INVALID'}")
     phantom = ph.marker_phantom(planner, length=args.length_mm / 1e3)
     print(f"phantom: {len(phantom.points)} markers on {len(phantom.offsets)} planes 80 mm apart "
-          f"(table Y0 = {np.array2string(phantom.offsets * 1e3, precision=1)} mm)")
+          f"(table Y0 = {_numbers(phantom.offsets * 1e3, '+.1f')} mm)")
     print(ph.parallax_check(planner, plan, phantom).describe())
     print(f"pose noise ({args.trials} trials per level; discrepancy to the exact reference projection):")
     print("σ (mm)  σ (deg)  RMS (px)  max (px)  f·σ_rad (px)  f·σ_m/z (px)")

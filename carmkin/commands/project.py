@@ -13,8 +13,8 @@ import argparse
 
 import numpy as np
 
-from ._common import add_alias, add_json_argument, add_preset_argument, integer, joints_json, number, system_from_args, \
-    write_json
+from ._common import add_alias, add_json_argument, add_preset_argument, integer, joints_json, number, patient_position, \
+    system_from_args, write_json
 from ._interop import add_configuration_argument, configuration, describe, millimetres
 
 HELP = "projection matrix P = K[R|t] of a configuration, simulator conventions, round-trip check"
@@ -23,9 +23,9 @@ HELP = "projection matrix P = K[R|t] of a configuration, simulator conventions, 
 def register(parser: argparse.ArgumentParser) -> None:
     add_preset_argument(parser)
     add_configuration_argument(parser)
-    parser.add_argument("--patient-position", metavar="CODE", help="express P in the patient frame for this DICOM patient "
+    parser.add_argument("--patient-position", metavar="CODE", type=patient_position, help="express P in the patient frame for this DICOM patient "
                         "position (HFS, HFP, HFDR, HFDL, FFS, FFP, FFDR, FFDL)")
-    add_alias(parser, "--patient", "--patient-position", "patient_position", metavar="CODE")
+    add_alias(parser, "--patient", "--patient-position", "patient_position", metavar="CODE", type=patient_position)
     add_json_argument(parser, "K, the image size, P and the decomposed pose (and the --check errors)")
     parser.add_argument("--patient-origin-mm", metavar="X,Y,Z", default="0,0,0",
                         help="patient frame origin in the table frame (mm, default 0,0,0)")

@@ -23,7 +23,7 @@ import numpy as np
 
 from carmkin.errors import UsageError
 
-from ._common import JOINTS_FLAG, MM_PER_M, add_joints_argument, add_json_argument, add_png_argument, \
+from ._common import JOINTS_FLAG, MIN_DISTANCE_MM, MM_PER_M, add_joints_argument, add_json_argument, add_png_argument, \
     add_preset_argument, integer, joints_json, number, output_path, parse_joints, parse_numbers, plot_path, \
     system_from_args, unit_slip, write_json
 
@@ -46,7 +46,7 @@ def _plan_arguments(parser: argparse.ArgumentParser) -> None:
                         "orbital:1,angular:0.3 (rad per rad)")
     add_joints_argument(parser, "the configuration whose orientation starts the arc",
                         "the arc centred on the joint's mid-range", old_names=("--q-start",))
-    parser.add_argument("--distance-mm", type=number(1.0, 10000.0, unit="mm"), default=None,
+    parser.add_argument("--distance-mm", type=number(MIN_DISTANCE_MM, 10000.0, unit="mm"), default=None,
                         help="source-to-target distance (mm, default the source-to-orbital-axis distance)")
     parser.add_argument("--plain", action="store_true", help="plan the plain joint rotation (no compensation)")
     parser.add_argument("--margin-mm", type=number(0.0, 1000.0, unit="mm"), default=10.0,

@@ -74,11 +74,17 @@ def _draw(viewer, args, q_target, T_target, patient=None) -> None:
         from carmkin.viz.views import draw_patient
 
         draw_patient(viewer, patient)
-    distances = viewer.show_distances(margin=args.margin_mm / MM_PER_M)
-    for obstacle in sorted({d.obstacle for d in distances}):
-        closest = min((d for d in distances if d.obstacle == obstacle), key=lambda d: d.distance)
-        state = "COLLISION" if closest.in_collision else "clear"
-        print(f"closest to {obstacle}: {closest.part} at {closest.distance * MM_PER_M:.1f} mm ({state})")
+    from carmkin.world.obstacles import link_of
+
+    distances = viewer.show_distances(margin=args.margin_mm / MM_PER_M, patient=patient)
+    groups = [link_of(d.obstacle) if link_of(d.obstacle) in ("table", "floor") else "patient" for d in distances]
+    for group in sorted(set(groups)):
+        mine = [d for d, g in zip(distances, groups) if g == group]
+        closest = min(mine, key=lambda d: d.distance)
+        hit = sorted({link_of(d.obstacle) for d in mine if d.in_collision})
+        which = f" ({link_of(closest.obstacle)})" if group == "patient" else ""
+        state = f"COLLISION with {', '.join(hit)}: drawn red" if hit else "clear"
+        print(f"closest to {group}{which}: {link_of(closest.part)} at {closest.distance * MM_PER_M:.1f} mm ({state})")
     if T_target is not None:
         viewer.show_target_pose(T_target)
     if q_target is not None:
@@ -123,8 +129,6 @@ def _serve(system, args, q, q_target, T_target) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from carmkin.viz import CArmViewer
-
     system = system_from_args(args)
     q = parse_joints(args.q_mm_deg, system, JOINTS_FLAG) if args.q_mm_deg else None  # every input checked before any work
     q_target = parse_joints(args.to_q_mm_deg, system, "--to-q-mm-deg") if args.to_q_mm_deg else None
@@ -138,6 +142,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"table top: upper surface at Y0 = {table_top_y(system) * MM_PER_M:+.1f} mm (Y0 points down); patient: "
               f"{describe_patient(patient, args.patient_position)}")
     if args.html or args.png:
+        from carmkin.viz import CArmViewer  # meshcat and the viewer (a second) only once every input is checked
+
         viewer = CArmViewer(system, q=q)
         _draw(viewer, args, q_target, T_target, patient)
         _write_static(viewer, args)

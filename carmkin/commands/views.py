@@ -50,7 +50,7 @@ def register(parser: argparse.ArgumentParser) -> None:
     plan.add_argument("--segment-mm", metavar="X1,Y1,Z1,X2,Y2,Z2",
                       help="a segment (vessel, screw; table frame, mm): plan its foreshortening-free view with the "
                            "most clearance, or the one nearest --primary-deg/--secondary-deg when given")
-    plan.add_argument("--distance-mm", type=common.number(0.0, 10000.0, open_minimum=True, unit="mm"),
+    plan.add_argument("--distance-mm", type=common.number(common.MIN_DISTANCE_MM, 10000.0, unit="mm"),
                       help="source-to-target distance (mm; default: free)")
     plan.add_argument("--rotation-deg", type=common.number(-180.0, 180.0, unit="deg"),
                       help="detector rotation about the beam (deg, as the plan prints it; default: free)")
@@ -155,7 +155,7 @@ def _report(args, system, plan, position) -> int:
     patient = None if isinstance(position, str) else position
     print(_scene.describe_scene(system, plan.view.target, patient, getattr(patient, "position", position)))
     _print_plan(system, plan, position)
-    common.write_json(args, _plan_json(system, plan, position))
+    common.write_json(args, {"preset": system.name, **_plan_json(system, plan, position)})
     shown = plan.q if plan.success else (plan.nearest.q if plan.nearest is not None else None)
     if shown is not None:
         _scene.write_figures(args, system, shown, patient, plan.view.target,
@@ -258,7 +258,7 @@ def _map(args: argparse.Namespace) -> int:
                   "binding": str(m.binding[i, j]),
                   "q": common.joints_json(system, m.q[i, j]) if m.reachable[i, j] else None}
                  for i, p in enumerate(m.primary_deg) for j, s in enumerate(m.secondary_deg)]
-        common.write_json(args, {"target_mm": list(target * MM), "cells": cells})
+        common.write_json(args, {"preset": system.name, "target_mm": list(target * MM), "cells": cells})
     return 0
 
 

@@ -55,6 +55,8 @@ def info(out) -> DatasetInfo:
     pq = require("pyarrow.parquet", "datasets")
     folder = Path(out)
     path = folder / MANIFEST
+    if not folder.is_dir():
+        raise DatasetError(f"{str(folder)!r}: no such folder")
     if not path.is_file():
         raise DatasetError(f"{str(folder)!r} holds no dataset (no {MANIFEST})")
     try:

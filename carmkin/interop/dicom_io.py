@@ -127,6 +127,8 @@ def read_file(path):
     pydicom = require_pydicom()
     if not isinstance(path, (str, os.PathLike)):
         raise DicomGeometryError(f"path must be a file path, got {validation._describe(path)}")
+    if not os.path.isfile(path):
+        raise DicomGeometryError(f"cannot read {os.fspath(path)}: no such file")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         try:

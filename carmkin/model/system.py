@@ -9,12 +9,12 @@ from functools import cached_property
 
 import numpy as np
 
-from carmkin.errors import InvalidParameterError
+from carmkin.errors import InvalidConfigurationError, InvalidParameterError
 from carmkin.transforms import translation
-from carmkin.validation import JOINT_VALUE_LIMIT, plain_floats
+from carmkin.validation import JOINT_VALUE_LIMIT, plain_floats, unit_slip
 
 from . import kinematics
-from .bounds import check_joint_limits
+from .bounds import MAX_ANGLE, MAX_LENGTH, check_joint_limits
 from .params import (
     JOINT_NAMES,
     PRISMATIC,
@@ -24,6 +24,17 @@ from .params import (
     TableGeometry,
     TableSetup,
 )
+
+
+#: Largest |prismatic joint value| (m) the public :meth:`CArmSystem.fk` accepts: three times the largest joint
+#: limit a system may have (:data:`~carmkin.model.bounds.MAX_LENGTH`, 10 m). A larger value is a unit slip
+#: (400 mm passed as 400 m), refused naming it. The toolkit's own callers that evaluate solver output (IK
+#: branches near a singular pose reach 4e6 m and must still be evaluated to be reported out of range) pass
+#: ``check_units=False``.
+PLAUSIBLE_PRISMATIC = 3.0 * MAX_LENGTH
+#: Largest |revolute joint value| (rad) the public :meth:`CArmSystem.fk` accepts: two turns, twice the widest
+#: joint range (:data:`~carmkin.model.bounds.MAX_ANGLE`, ±2π). A larger value is an angle in degrees.
+PLAUSIBLE_REVOLUTE = 2.0 * MAX_ANGLE
 
 
 @dataclass(frozen=True)
@@ -147,13 +158,45 @@ class CArmSystem:
         """The expanded closed-form FK of the 6-DOF chain (constants precomputed once per system)."""
         return kinematics.ClosedFormFK(self.carm, self.setup)
 
-    def fk(self, q) -> np.ndarray:
+    def fk(self, q, *, check_units: bool = True) -> np.ndarray:
         """Pose of ``xray_source`` in the table frame: (4, 4) for q of shape (nq,), (N, 4, 4) for (N, nq).
 
         One configuration of plain floats (a float64 array or a list of floats) takes the scalar path on
         Python floats (:meth:`ClosedFormFK.rows <carmkin.model.kinematics.ClosedFormFK.rows>`, a few µs);
         anything else is checked in full (:func:`~carmkin.model.kinematics.check_configuration`); batches
-        are vectorized."""
+        are vectorized.
+
+        A prismatic value beyond :data:`PLAUSIBLE_PRISMATIC` (m) or a revolute one beyond
+        :data:`PLAUSIBLE_REVOLUTE` (rad) is an :class:`~carmkin.errors.InvalidConfigurationError` naming the
+        likely unit slip (``"given in mm? 400 mm = 0.4 m"``, ``"given in degrees?"``). ``check_units=False``
+        lifts that bound (to :data:`~carmkin.validation.JOINT_VALUE_LIMIT`, an overflow guard): for joint values
+        that are not a user's but a solver's, e.g. an IK branch far out of range near a singular pose."""
+        if not check_units:
+            return self._fk(q)
+        values = plain_floats(q, self.nq, PLAUSIBLE_REVOLUTE)
+        if values is not None:  # every value within two turns and 12.6 m: plausible in either unit
+            return np.array(self._fk_rows(values)).reshape(4, 4)
+        q = kinematics.check_configuration(q, self.nq)
+        self._check_plausible(q)
+        return self._fk(q)
+
+    def _check_plausible(self, q: np.ndarray) -> None:
+        """InvalidConfigurationError naming the first joint value of q (nq,) or (N, nq) that no C-arm takes in
+        the unit asked for (see :data:`PLAUSIBLE_PRISMATIC`, :data:`PLAUSIBLE_REVOLUTE`)."""
+        limits = np.where(self.prismatic, PLAUSIBLE_PRISMATIC, PLAUSIBLE_REVOLUTE)
+        beyond = np.abs(q) > limits
+        if not beyond.any():
+            return
+        index = tuple(int(i) for i in np.argwhere(beyond)[0])
+        joint, value = index[-1], float(q[index])
+        bound, unit = float(limits[joint]), "m" if self.prismatic[joint] else "rad"
+        raise InvalidConfigurationError(
+            f"q[{', '.join(map(str, index))}] ({self.joint_names[joint]}) = {value:g} {unit} is not a C-arm joint "
+            f"value: |value| must "
+            f"be at most {bound:.4g} {unit}{unit_slip(value, -bound, bound, unit)}")
+
+    def _fk(self, q) -> np.ndarray:
+        """:meth:`fk` with ``check_units=False``."""
         values = plain_floats(q, self.nq, JOINT_VALUE_LIMIT)
         if values is not None:
             return np.array(self._fk_rows(values)).reshape(4, 4)

@@ -91,7 +91,7 @@ def panorama_experiment(system, volume: Volume, T_table_ct, q_reference, length:
     z = T_ref[:3, 2]
     direction_table = T_ref[:3, :3] @ plan.direction
     plane_n, plane_d = z, float(z @ (T_ref[:3, 3] + plan.distance * z))
-    poses = {"parallax-free": np.array([system.fk(shot.q) for shot in plan.shots])}
+    poses = {"parallax-free": np.array([system.fk(shot.q, check_units=False) for shot in plan.shots])}
     translated = np.repeat(T_ref[None], len(plan.aims), axis=0)
     translated[:, :3, 3] += plan.aims[:, None] * direction_table
     poses["one-plane"] = translated

@@ -185,7 +185,7 @@ def parallax_check(planner, plan, phantom: Phantom, stitch_plane: int = 1) -> Pa
     stitch_plane = integer(stitch_plane, "stitch_plane", low=0, high=len(phantom.offsets) - 1, error=PanoramaError)
     if any(not np.all(np.isfinite(s.q)) for s in plan.shots):
         raise PanoramaError("a shot of the plan has no joint solution")
-    poses = [system.fk(s.q) for s in plan.shots]  # IK → FK round trip
+    poses = [system.fk(s.q, check_units=False) for s in plan.shots]  # IK → FK round trip
     free_H = [s.H for s in plan.shots]
     shifted = translation_poses(planner, plan)
     n, d = phantom.normal, phantom.offsets[stitch_plane]
@@ -229,7 +229,7 @@ def noise_propagation(planner, plan, phantom: Phantom, sigmas, trials: int = 50,
                             f"[0, 180] deg, got {sigmas.tolist()}")
     trials = integer(trials, "trials", low=1, high=MAX_TRIALS, error=PanoramaError)
     rng = np.random.default_rng(integer(seed, "seed", low=0, error=PanoramaError))
-    poses = [planner.system.fk(s.q) for s in plan.shots]
+    poses = [planner.system.fk(s.q, check_units=False) for s in plan.shots]
     H = [s.H for s in plan.shots]
     depth = float(np.median((phantom.points - planner.P_ref[:3, 3]) @ planner.P_ref[:3, 2]))
     f = planner.K[0, 0]

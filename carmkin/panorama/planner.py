@@ -203,7 +203,7 @@ class PanoramaPlanner:
         q, path, report, ik, reasons = self._solve(T, q_current, fallback)
         category = _category(report)
         valid = category == "valid"
-        residual = pose_residual(self.system.fk(q), T) if np.all(np.isfinite(q)) else float("inf")
+        residual = pose_residual(self.system.fk(q, check_units=False), T) if np.all(np.isfinite(q)) else float("inf")
         outline = self.outline(H)
         return Shot(_pixel(principal_point), V, R, H, T, q, path, valid,
                     () if valid else reasons, category, q - q_current, outline, residual, report, ik)

@@ -242,9 +242,9 @@ def _pool(workers: int, init: tuple):
 
 def table_rows(results: list[ModelReach]) -> list[str]:
     """Printable rows: model, free joints, reachable fraction, time."""
-    rows = [f"{'model':<14}{'free joints':<34}{'reachable':>10}{'s':>8}"]
+    rows = [f"{'model':<14}{'free joints':<34}{'reachable':>10}{'time (s)':>10}"]
     for r in results:
-        rows.append(f"{r.model:<14}{LABELS[r.model]:<34}{r.fraction:>10.1%}{r.seconds:>8.1f}")
+        rows.append(f"{r.model:<14}{LABELS[r.model]:<34}{r.fraction:>10.1%}{r.seconds:>10.1f}")
     return rows
 
 

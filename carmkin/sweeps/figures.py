@@ -26,7 +26,7 @@ def clearance_and_drift(sweep, path=None):
     top.set_ylabel("clearance (mm)")
     top.legend(fontsize=8)
     bottom.plot(phi, sweep.drift * 1e3, label="plain joint rotation")
-    T = sweep.system.fk(np.where(np.isfinite(sweep.q), sweep.q, 0.0))
+    T = sweep.system.fk(np.where(np.isfinite(sweep.q), sweep.q, 0.0), check_units=False)
     residual = np.linalg.norm(sweep.target - T[:, :3, 3] - sweep.distance * T[:, :3, 2], axis=1)
     bottom.plot(phi, residual * 1e3, label="compensated" if sweep.compensated else "planned")
     bottom.set_xlabel("sweep angle φ (deg)")

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from carmkin.errors import SweepError
-from carmkin.validation import real_array, real_scalar
+from carmkin.validation import real_array, real_scalar, target_point
 
 from carmkin.world import DEFAULT_MARGIN, DEFAULT_TOLERANCE, World
 from carmkin.world.obstacles import as_obstacles
@@ -265,7 +265,7 @@ def plan_sweep(system, target, arc_deg: float = 190.0, n_views: int = 100, patie
     swept clearance may be, m). An arc that does not fit is not an exception: ``success`` is False and
     ``failure`` names the joint limit, contact or unreachable pose, where, and the largest feasible arc.
     """
-    target = real_array(target, "target", (3,), error=SweepError, unit="m")
+    target = target_point(target, "target", error=SweepError)
     arc = math.radians(real_scalar(arc_deg, "arc_deg", error=SweepError, low=1e-6, high=360.0, unit="deg"))
     if isinstance(n_views, bool) or not isinstance(n_views, (int, np.integer)) or not 2 <= n_views <= MAX_VIEWS:
         raise SweepError(f"n_views must be an integer in [2, {MAX_VIEWS}], got {n_views!r}")
@@ -278,7 +278,7 @@ def plan_sweep(system, target, arc_deg: float = 190.0, n_views: int = 100, patie
     q_ref, centred = _reference(system, w, q_start, target, distance)
     phi = tr.frame_angles(arc, int(n_views), centred)
     q_plain = tr.plain(q_ref, w, phi)
-    T_plain = system.fk(q_plain)
+    T_plain = system.fk(q_plain, check_units=False)  # solver output
     drift = tr.drift(T_plain, target, distance)
     if compensate:
         q, reached = tr.compensated(system, q_plain, target, distance)
@@ -325,7 +325,7 @@ def plan_sweep(system, target, arc_deg: float = 190.0, n_views: int = 100, patie
     if first is not None:
         first = SweepFailure(first.kind, first.angle, first.frame, _largest_run(phi, frame_ok, seg_ok), first.joint,
                              first.pair, first.distance)
-    poses = system.fk(np.where(np.isfinite(q), q, 0.0))
+    poses = system.fk(np.where(np.isfinite(q), q, 0.0), check_units=False)
     from carmkin.imaging.projection import intrinsics
 
     K, _ = intrinsics(system)

@@ -101,7 +101,7 @@ def solve_poses(system, T: np.ndarray, q_ref: np.ndarray) -> tuple[np.ndarray, n
 
 def compensated(system, q_plain: np.ndarray, target: np.ndarray, distance: float) -> tuple[np.ndarray, np.ndarray]:
     """The compensated trajectory (n, nq) of a plain one and the per-frame reached flags (n,)."""
-    R = system.fk(q_plain)[:, :3, :3]
+    R = system.fk(q_plain, check_units=False)[:, :3, :3]
     return solve_poses(system, aligned_poses(R, target, distance), q_plain)
 
 

@@ -39,7 +39,7 @@ def link_poses(system, Q) -> tuple[np.ndarray, np.ndarray]:
     """DH frames 1..6 (M, 6, 4, 4) and source poses (M, 4, 4) of configurations Q (M, nq): the closed form,
     with a motorized table's motion ``Tz(d0) E(q_table)`` computed once per distinct table configuration."""
     if not system.table.joints:
-        return system.dh_frames(Q), system.fk(Q)
+        return system.dh_frames(Q), system.fk(Q, check_units=False)
     from carmkin.model import kinematics
 
     q6, q_table = system.split(Q)

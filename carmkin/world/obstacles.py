@@ -32,7 +32,7 @@ from carmkin.errors import (
     PatientModelError,
 )
 from carmkin.transforms import check_rigid_transform
-from carmkin.validation import real_array
+from carmkin.validation import MAX_DISTANCE, MIN_DISTANCE, real_array, unit_slip
 
 #: Links of the C-arm that move with the vertical joint or later joints (collision candidates).
 CARM_MOVING_LINKS = ("dh_frame_2", "dh_frame_3", "dh_frame_4", "dh_frame_5", "dh_frame_6", "xray_source", "detector")
@@ -40,6 +40,10 @@ CARM_MOVING_LINKS = ("dh_frame_2", "dh_frame_3", "dh_frame_4", "dh_frame_5", "dh
 CARM_ENVIRONMENT_LINKS = ("table", "floor")
 #: (moving link, environment link) pairs left out: the column stands in the cart on the floor.
 CARM_EXCLUDED_PAIRS = (("dh_frame_2", "floor"),)
+#: Largest size (m: extent, radius or length) of an :class:`Obstacle` and largest distance of its centre from
+#: the table frame's origin: 10 m (:data:`carmkin.validation.MAX_DISTANCE`), more than an operating room. A
+#: larger number is a unit slip (a 500 mm patient given as 500 m), refused naming it.
+MAX_OBSTACLE_EXTENT = MAX_DISTANCE
 
 
 @dataclass(frozen=True)
@@ -49,8 +53,10 @@ class Obstacle:
     Attributes:
         name: unique geometry name (reported in collisions).
         shape: ``"box"`` (size = full extents x, y, z), ``"capsule"`` (size = radius, length along Z),
-            ``"sphere"`` (size = radius) or ``"cylinder"`` (size = radius, length along Z); metres.
-        pose: 4x4 pose of the shape's centre frame in the table frame 0.
+            ``"sphere"`` (size = radius) or ``"cylinder"`` (size = radius, length along Z); metres, each
+            within [1 µm, :data:`MAX_OBSTACLE_EXTENT`] (a size in mm is refused, naming the slip).
+        pose: 4x4 pose of the shape's centre frame in the table frame 0, its centre within
+            :data:`MAX_OBSTACLE_EXTENT` of the origin along each axis.
     """
 
     name: str
@@ -74,8 +80,19 @@ class Obstacle:
                 f"Obstacle {self.name!r}: a {self.shape} needs {self._ARITY[self.shape]} positive finite sizes (m),"
                 f" got {size}"
             )
+        for value in size:
+            if not MIN_DISTANCE <= value <= MAX_OBSTACLE_EXTENT:
+                raise CollisionSceneError(
+                    f"Obstacle {self.name!r}: size {value:g} m is not an obstacle near a C-arm (each size within "
+                    f"[{MIN_DISTANCE:g}, {MAX_OBSTACLE_EXTENT:g}] m){unit_slip(value, MIN_DISTANCE, MAX_OBSTACLE_EXTENT, 'm')}")
         object.__setattr__(self, "size", size)
-        object.__setattr__(self, "pose", check_rigid_transform(self.pose, f"Obstacle {self.name!r} pose"))
+        pose = check_rigid_transform(self.pose, f"Obstacle {self.name!r} pose")
+        offset = float(np.abs(pose[:3, 3]).max())
+        if offset > MAX_OBSTACLE_EXTENT:
+            raise CollisionSceneError(
+                f"Obstacle {self.name!r}: centre {pose[:3, 3].tolist()} m lies {offset:g} m from the table frame's "
+                f"origin along an axis, beyond {MAX_OBSTACLE_EXTENT:g} m{unit_slip(offset, 0.0, MAX_OBSTACLE_EXTENT, 'm')}")
+        object.__setattr__(self, "pose", pose)
 
     @classmethod
     def box(cls, name: str, size, center=(0.0, 0.0, 0.0), rotation=None) -> "Obstacle":

@@ -2,7 +2,7 @@
 former names hidden, working, and saying so), ``--target-mm`` for a point, ``--patient-position`` for a DICOM
 code, ``--png``/``--html`` for figures, ``--json [FILE]`` on every command that computes something, usage errors
 that name the subcommand; ``carmkin --version`` and ``carmkin.__version__`` from the package metadata, and an
-output folder that is created with a line that says so."""
+output folder that does not exist refused before any work, never created."""
 
 from __future__ import annotations
 
@@ -77,20 +77,48 @@ def test_version_comes_from_the_package_metadata(capsys):
     assert code == 0 and out.strip() == f"carmkin {expected}"
 
 
-def test_a_missing_output_folder_is_created_and_said(tmp_path, capsys):
-    target = tmp_path / "new" / "deeper" / "carm.urdf"
-    code, _, err = run(["urdf", "-o", target], capsys)
-    assert code == 0 and target.read_text().startswith("<?xml")
-    assert f"created the folder '{target.parent}'" in err
-    code, _, err = run(["urdf", "-o", target], capsys)  # the folder exists now: nothing to say
-    assert code == 0 and "created" not in err
+@pytest.mark.parametrize("argv", [
+    ["views", "plan", "--standard", "AP", "--png"],
+    ["workspace", "--png"],
+    ["ik", "--pose=213,385,359,72.7,-87.5,52.7", "--json"],
+    ["urdf", "-o"],
+])
+@pytest.mark.parametrize("where", ["tmp", "/nonexistent"])
+def test_a_missing_output_folder_is_refused_before_any_work_and_never_created(argv, where, tmp_path, capsys,
+                                                                               monkeypatch):
+    import pathlib
+
+    folder = tmp_path / "missing" if where == "tmp" else pathlib.Path(where)
+    if folder.exists():
+        pytest.skip(f"{folder} exists on this machine")
+    module = __import__(f"carmkin.commands.{argv[0]}", fromlist=["run"])
+    monkeypatch.setattr(module, "run", lambda args: pytest.fail("the command ran before its output was checked"))
+    suffix = {"--png": "x.png", "--json": "x.json", "-o": "x.urdf"}[argv[-1]]
+    code, out, err = run([*argv, str(folder / suffix)], capsys)
+    assert code == 2 and not out and len(err.strip().splitlines()) == 1, err
+    assert f"the folder '{folder}' does not exist" in err and argv[-1] in err and argv[0] in err
+    assert not folder.exists()
+
+
+def test_a_dataset_folder_is_made_only_when_its_parent_is_there(tmp_path, capsys, monkeypatch):
+    import carmkin.commands.dataset as dataset
+
+    base = ["dataset", "generate", "--prior", "standard-views", "--n", "1", "--size", "10x10", "--out"]
+    monkeypatch.setattr(dataset.common, "system_from_args", lambda args: pytest.fail("work began"))
+    code, _, err = run([*base, str(tmp_path / "a" / "b")], capsys)
+    assert code == 2 and f"the folder '{tmp_path / 'a'}' does not exist" in err and not (tmp_path / "a").exists()
+    (tmp_path / "f").write_text("")
+    code, _, err = run([*base, str(tmp_path / "f")], capsys)
+    assert code == 2 and "is a file, expected a folder" in err
+    with pytest.raises(pytest.fail.Exception, match="work began"):  # a new folder in an existing one: work starts
+        run([*base, str(tmp_path / "new")], capsys)
 
 
 def test_an_output_folder_that_cannot_be_made_is_refused_in_one_line(tmp_path, capsys):
     blocker = tmp_path / "a-file"
     blocker.write_text("")
     code, _, err = run(["urdf", "-o", blocker / "carm.urdf"], capsys)
-    assert code == 2 and len(err.strip().splitlines()) == 1 and "--output" in err and "cannot create the folder" in err
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "--output" in err and "is a file" in err
 
 
 # --- the grammar of docs/cli.md, over every subcommand's parser ------------------------------------------------
@@ -163,8 +191,8 @@ def test_an_output_that_cannot_be_written_is_refused_before_any_work(command, tm
                 "panorama shot": ["--principal-point", "400,300"], **REQUIRED}.get(command, [])
     code, out, err = run([*command.split(), *required, "--json", blocker / "x.json"], capsys)
     assert code == 2 and not out
-    assert err.strip().splitlines() == [f"carmkin {command}: error: --json {blocker / 'x.json'}: cannot create the "
-                                        f"folder '{blocker}' ('{blocker}' is a file)"]
+    assert err.strip().splitlines() == [f"carmkin {command}: error: --json {blocker / 'x.json'}: '{blocker}' is a "
+                                        "file, not a folder"]
 
 
 @pytest.mark.parametrize("former", sorted(ALIASES))

@@ -69,3 +69,55 @@ def test_view_draws_the_patient(tmp_path, capsys):
     assert main(["view", "--patient", "parametric", "--patient-position", "FFS", "--html", str(html)]) == 0
     assert "patient: parametric, 1750 mm, 75 kg, FFS" in capsys.readouterr().out
     assert any("/patient/" in p for p in page_paths(html.read_text()))
+
+
+# --- a collision the text reports is in the picture --------------------------------------------------------------
+#: A configuration whose detector runs into the parametric patient's thighs (HFS, default size), and one clear of it.
+COLLIDING = [0.0, 0.0, 0.0, 0.2, np.pi / 2, 0.0]
+CLEAR = [0.0, 0.2, 0.0, 0.1, 0.0, 0.0]
+
+
+def colliding_bodies(q, patient) -> set[str]:
+    """The oracle: bodies at or below 0 m from some C-arm part, by coal through the world's own distances."""
+    from carmkin.world import World
+    from carmkin.world.obstacles import link_of
+
+    world = World(SYSTEM, patient)
+    return {link_of(b) for (_, b), d in zip(world.pairs, world.distances(q=q).tolist()) if d <= 0.0}
+
+
+@pytest.mark.parametrize("q", [COLLIDING, CLEAR], ids=["colliding", "clear"])
+def test_the_scene_figure_outlines_in_red_exactly_the_bodies_hit(q):
+    from matplotlib.colors import to_hex
+
+    patient = ParametricPatient.on_table(SYSTEM)
+    hit = colliding_bodies(q, patient)
+    assert bool(hit) == (q is COLLIDING)
+    fig = carmkin.plots.scene_figure(SYSTEM, q, patient)
+    for ax in fig.axes:
+        red = {p.get_gid() for p in ax.patches if to_hex(p.get_edgecolor()) == carmkin.plots.SCENE_COLOURS["collision"]}
+        assert red == hit
+        pair = [line for line in ax.get_lines() if "mm" in line.get_label()]
+        assert len(pair) == 1 and pair[0].get_label().startswith("COLLISION" if hit else "closest:")
+        assert (to_hex(pair[0].get_color()) == carmkin.plots.SCENE_COLOURS["collision"]) == bool(hit)
+
+
+def collided_paths(html: str) -> set[str]:
+    return {p.rsplit("/", 1)[-1] for p in page_paths(html) if "/distances/collided/" in p}
+
+
+@pytest.mark.parametrize("q", [COLLIDING, CLEAR], ids=["colliding", "clear"])
+def test_the_viewer_page_paints_every_body_hit_red(q):
+    patient = ParametricPatient.on_table(SYSTEM)
+    assert collided_paths(_scene.scene_page(SYSTEM, np.array(q), patient)) == colliding_bodies(q, patient)
+
+
+def test_carmkin_view_says_and_draws_the_same_collision(tmp_path, capsys):
+    page = tmp_path / "v.html"
+    q = ",".join(f"{v:g}" for v in (0, 0, 0, 200, 90, 0))
+    assert main(["view", "--q-mm-deg", q, "--patient", "parametric", "--html", str(page)]) == 0
+    out = capsys.readouterr().out
+    said = re.search(r"COLLISION with ([\w, ]+): drawn red", out)
+    assert said, out
+    named = set(said.group(1).split(", "))
+    assert named == colliding_bodies(COLLIDING, ParametricPatient.on_table(SYSTEM)) == collided_paths(page.read_text())
