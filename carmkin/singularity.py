@@ -369,9 +369,12 @@ def joint_index(joint, system: CArmSystem | None = None) -> int:
 
 
 def _pair(system: CArmSystem, pair) -> tuple[int, int]:
-    if isinstance(pair, (str, bytes)) or not hasattr(pair, "__len__") or len(pair) != 2:
-        raise SingularityError(f"pair must be two joints (names or indices), got {pair!r}")
-    i, j = joint_index(pair[0], system), joint_index(pair[1], system)
+    if isinstance(pair, (str, bytes)) or np.ndim(pair) != 1 or len(pair) != 2:
+        raise SingularityError(f"pair must be two joints (names or indices), got {pair!r:.80}")
+    try:
+        i, j = joint_index(pair[0], system), joint_index(pair[1], system)
+    except SingularityError as exc:
+        raise SingularityError(f"pair: {exc}") from None
     if i == j:
         raise SingularityError(f"a map needs two different joints, got {system.joint_names[i]} twice")
     return i, j
@@ -407,6 +410,7 @@ def measure_map(system: CArmSystem, q, pair: tuple[int, int], n: int = 61, measu
         raise SingularityError(f"measure_map takes one configuration ({system.nq},), got shape {q.shape}")
     if not isinstance(measure, str) or measure not in MAP_MEASURES:
         raise SingularityError(f"unknown measure {measure!r}: use one of {', '.join(MAP_MEASURES)}")
+    length = _check_length(system, length)  # checked whatever the measure (the determinant does not read it)
     i, j = _pair(system, pair)
     x, y = grid_axis(system, i, n), grid_axis(system, j, n)
     grid = np.broadcast_to(q, (len(y), len(x), system.nq)).copy()

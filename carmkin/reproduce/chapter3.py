@@ -40,7 +40,7 @@ import numpy as np
 from carmkin.errors import CarmkinError, SimulationError, UnreachablePanoramaError
 from carmkin.seed import SEED_TABLE_3_1, SEED_TABLE_3_2
 
-from .error_model import ErrorModel
+from .error_model import ErrorModel, count, generator
 from .repositioning import build_model, make_room, statistics
 from .stitching import (
     _in_image,
@@ -187,10 +187,11 @@ def table_3_1(system, model: ErrorModel = ErrorModel(), procedures: int = 2, see
               protocol: str = "chapter3") -> dict:
     """Table 3.1's rows: procedure -> ((mean, std, markers) without VDP, (...) with VDP), and overall."""
     protocol = _protocol(protocol)
-    rng = np.random.default_rng(seed)
+    procedures = count(procedures, "procedures")
+    rng = generator(seed)
     room = make_room(system, model, rng, guidance)
     runs, rows = [], {}
-    for k in range(int(procedures)):
+    for k in range(procedures):
         runs.append(overlap_errors(room, rng, protocol))
         rows[f"#{k + 1}"] = tuple((*statistics(e)[:2], e.size) for e in runs[-1])
     rows["overall"] = tuple((*statistics(np.concatenate([r[i] for r in runs]))[:2],
@@ -297,7 +298,7 @@ def _panorama(system, images, points, rng, model, vdp):
 def table_3_2(system, model: ErrorModel = ErrorModel(), seed: int = 0, guidance=None, protocol: str = "chapter3") -> dict:
     """Table 3.2: method -> measured values (one procedure, as in the seed; A and B by ``protocol``)."""
     protocol = _protocol(protocol)
-    rng = np.random.default_rng(seed)
+    rng = generator(seed)
     return metric_measurements(make_room(system, model, rng, guidance), rng, protocol=protocol)
 
 

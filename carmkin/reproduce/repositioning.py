@@ -46,7 +46,8 @@ from carmkin.seed import SEED_RESULTS
 
 from carmkin.reposition.experiment import statistics
 
-from .error_model import ErrorModel, square_pixel_system
+from .error_model import ErrorModel, generator, square_pixel_system, study_inputs
+from .error_model import count as _count
 from .measure import camera_reading, filtered_noise, pose_difference, xray_points
 
 #: Guidance updates before a task counts as failed.
@@ -105,6 +106,7 @@ def make_room(system, model: ErrorModel, rng: np.random.Generator, guidance=None
     from carmkin.reposition.world import World
     from carmkin.world import World as CollisionWorld
 
+    system, model, guidance = study_inputs(system, model, guidance)
     system = square_pixel_system(system)
     noise = filtered_noise(model.corner_noise_px, model.frames)
     world = World.create(system, rng, mount_error=model.mount_error, corner_noise_px=noise)
@@ -230,11 +232,10 @@ def run_task(room: Room, rng: np.random.Generator, end: str = "guided") -> Task:
 
 def repeat(one, system, model: ErrorModel, count: int, seed: int, guidance=None, what: str = "tasks") -> list:
     """``one(room, rng)`` ``count`` times in one room (numpy seed ``seed``; ``guidance`` as in :func:`make_room`)."""
-    if int(count) < 1:
-        raise SimulationError(f"{what} must be >= 1, got {count}")
-    rng = np.random.default_rng(seed)
+    count = _count(count, what)
+    rng = generator(seed)
     room = make_room(system, model, rng, guidance)
-    return [one(room, rng) for _ in range(int(count))]
+    return [one(room, rng) for _ in range(count)]
 
 
 def run(system, model: ErrorModel = ErrorModel(), tasks: int = 10, seed: int = 0, guidance=None,

@@ -12,7 +12,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from carmkin.errors import SweepError
-from carmkin.validation import real_array, real_scalar
+from carmkin.model.system import require_system
+from carmkin.validation import flag, real_array, real_scalar
 
 from carmkin.world import DEFAULT_MARGIN, DEFAULT_TOLERANCE, World
 from carmkin.world.obstacles import as_obstacles
@@ -265,7 +266,9 @@ def plan_sweep(system, target, arc_deg: float = 190.0, n_views: int = 100, patie
     swept clearance may be, m). An arc that does not fit is not an exception: ``success`` is False and
     ``failure`` names the joint limit, contact or unreachable pose, where, and the largest feasible arc.
     """
+    require_system(system, SweepError)
     target = real_array(target, "target", (3,), error=SweepError, unit="m")
+    compensate = flag(compensate, "compensate", error=SweepError)
     arc = math.radians(real_scalar(arc_deg, "arc_deg", error=SweepError, low=1e-6, high=360.0, unit="deg"))
     if isinstance(n_views, bool) or not isinstance(n_views, (int, np.integer)) or not 2 <= n_views <= MAX_VIEWS:
         raise SweepError(f"n_views must be an integer in [2, {MAX_VIEWS}], got {n_views!r}")
