@@ -100,11 +100,18 @@ def singularity_distances(system: CArmSystem, q) -> dict[SingularCase, np.ndarra
 
 
 # --- Pinocchio ---------------------------------------------------------------------------------------------
+def _check_reference_frame(reference_frame) -> None:
+    if not isinstance(reference_frame, pin.ReferenceFrame):
+        raise SingularityError(f"reference_frame must be a pinocchio.ReferenceFrame (e.g. pin.LOCAL_WORLD_ALIGNED), "
+                               f"got {reference_frame!r:.60}")
+
+
 def jacobian(system: CArmSystem, q, reference_frame=REFERENCE_FRAME) -> np.ndarray:
     """Pinocchio's Jacobian (6, nq) of ``xray_source``: rows ``[v; ω]`` (m/s, rad/s), see module docstring."""
     q = check_configuration(q, _check_system(system).nq)
     if q.ndim != 1:
         raise SingularityError(f"jacobian takes one configuration (nq,), got shape {q.shape}; use jacobians")
+    _check_reference_frame(reference_frame)
     model = system.pinocchio()[0]
     data = model.createData()
     return pin.computeFrameJacobian(model, data, q, model.getFrameId(FRAME), reference_frame).copy()
@@ -113,6 +120,7 @@ def jacobian(system: CArmSystem, q, reference_frame=REFERENCE_FRAME) -> np.ndarr
 def jacobians(system: CArmSystem, q, reference_frame=REFERENCE_FRAME) -> np.ndarray:
     """Jacobians (N, 6, nq) for configurations (N, nq) (one Pinocchio call per configuration)."""
     q = np.atleast_2d(check_configuration(q, _check_system(system).nq))
+    _check_reference_frame(reference_frame)
     model = system.pinocchio()[0]
     data = model.createData()
     frame_id = model.getFrameId(FRAME)

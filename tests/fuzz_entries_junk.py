@@ -482,3 +482,143 @@ ENTRIES = {
     "singularity (arguments)": (singularity_args, 0.5), "presets.system_from_dict (fields)": (preset_fields, 0.5),
     "presets.load_preset (junk)": (load_junk_preset, 0.3),
 }
+
+
+# --- the rest of the public arguments of these modules ----------------------------------------------------------
+_ROOM = None
+
+
+def reproduce_room_steps(rng):
+    """One room (made once), its public steps with junk: make_room's rng and calibrate, a task's end, a
+    procedure's overlap, the metric measurements' overlap."""
+    global _ROOM
+    from carmkin.reproduce import chapter3, repositioning, stitching
+
+    _ROOM = _ROOM or repositioning.make_room(PRESET, _model(), np.random.default_rng(0))
+    which = _pick(rng, ("room", "task", "procedure", "metric"))
+    if which == "room":
+        case = Case(repositioning.make_room, (), {"system": PRESET, "model": _model(), "rng": np.random.default_rng(1),
+                                                  "calibrate": bool(rng.random() < 0.5)},
+                    check=lambda room: room.system.nq == PRESET.nq)
+        return junk_argument(rng, case, {"rng": "rng", "calibrate": "flag"}) if rng.random() < 0.8 else case
+    if which == "task":
+        case = Case(repositioning.run_task, (), {"room": _ROOM, "rng": np.random.default_rng(2), "end": "box"})
+        return junk_argument(rng, case, {"room": "model", "rng": "rng", "end": "name"})
+    if which == "procedure":
+        case = Case(stitching.run_procedure, (), {"room": _ROOM, "rng": np.random.default_rng(3), "overlap": 0.1})
+        return junk_argument(rng, case, {"room": "model", "rng": "rng", "overlap": "real"},
+                             {"overlap": (("1.5", lambda: 1.5), ("-0.1", lambda: -0.1))})
+    case = Case(chapter3.metric_measurements, (), {"room": _ROOM, "rng": np.random.default_rng(4), "overlap": 0.1})
+    return junk_argument(rng, case, {"room": "model", "rng": "rng", "overlap": "real", "protocol": "name"},
+                         {"overlap": (("1.5", lambda: 1.5), ("-0.1", lambda: -0.1))})
+
+
+def singularity_more(rng):
+    from carmkin import singularity as sing
+
+    system = _system(rng)
+    q = _q(rng, system)
+    which = _pick(rng, ("jacobian", "jacobians", "length", "scaling", "axes", "distances", "grid"))
+    if which == "jacobian":
+        case = Case(sing.jacobian, (), {"system": system, "q": q}, check=lambda J: g.close(
+            J, __import__("fuzz_entries_systems")._pin_jacobian(system, q), atol=1e-9))
+        spec = {"system": "system", "q": f"vector:{system.nq}", "reference_frame": "name"}
+    elif which == "jacobians":
+        Q = np.stack([q, _q(rng, system)])
+        case = Case(sing.jacobians, (), {"system": system, "q": Q}, check=lambda J: J.shape == (2, 6, system.nq))
+        spec = {"system": "system", "reference_frame": "name"}
+    elif which == "length":
+        case = Case(sing.characteristic_length, (), {"system": system}, check=lambda L: L > 0)
+        spec = {"system": "system"}
+    elif which == "scaling":
+        length = float(rng.choice([0.01, 1.0]))
+        case = Case(sing.scaling, (), {"system": system, "length": length}, check=lambda r: g.close(
+            r[0], [1 / length] * 3 + [1.0] * 3))
+        spec = {"system": "system", "length": "real?"}
+    elif which == "axes":
+        case = Case(sing.joint_axes, (), {"system": PRESET, "q": _q(rng, PRESET)}, check=lambda a: a.shape[-1] == 3)
+        spec = {"system": "system", "q": "vector:6"}
+    elif which == "distances":
+        case = Case(sing.singularity_distances, (), {"system": PRESET, "q": _q(rng, PRESET)},
+                    check=lambda d: len(d) == 3)
+        spec = {"system": "system", "q": "vector:6"}
+    else:
+        n = int(rng.integers(2, 40))
+        case = Case(sing.grid_axis, (), {"system": system, "joint": "orbital", "n": n}, check=lambda x: len(x) == n)
+        spec = {"system": "system", "joint": "name", "n": "count"}
+    return maybe_junk_argument(rng, case, spec)
+
+
+def presets_more(rng):
+    from carmkin.presets import parse_preset, preset_provenance, system_from_dict
+    from carmkin.presets.writer import save_preset, to_toml
+
+    which = _pick(rng, ("parse", "provenance", "save", "dict"))
+    if which == "parse":
+        text = to_toml(PRESET)
+        case = Case(parse_preset, (), {"text": text, "source": "fuzz"}, check=lambda s: s.carm == PRESET.carm)
+        # a text that is no preset is refused naming its source (the label the user gave it)
+        return maybe_junk_argument(rng, case, {"text": "name", "source": "label"}, named={"text": "fuzz"})
+    if which == "provenance":
+        case = Case(preset_provenance, (), {"name_or_path": "siremobile-iso-c3d"}, check=lambda p: len(p) > 0)
+        return maybe_junk_argument(rng, case, {"name_or_path": "name"}, named={"name_or_path": "preset"})
+    if which == "save":
+        path = Path(tempfile.mkdtemp()) / "p.toml"
+        case = Case(save_preset, (), {"system": PRESET, "path": path},
+                    check=lambda p: carmkin.load_preset(p).carm == PRESET.carm)
+        return maybe_junk_argument(rng, case, {"system": "system"})
+    case = Case(system_from_dict, (), {"data": _shipped("siremobile-iso-c3d"), "default_name": "x", "source": "y"},
+                check=lambda s: s.nq == 6)
+    return maybe_junk_argument(rng, case, {"default_name": "label", "source": "label"})
+
+
+def qp_targets(rng):
+    from carmkin.qp_ik import AimTarget, AxisTarget
+
+    if rng.random() < 0.5:
+        p, d = rng.normal(size=3), g.unit(rng)
+        case = Case(AxisTarget, (), {"position": p, "direction": d}, check=lambda t: g.close(t.position, p))
+        return maybe_junk_argument(rng, case, {"position": "vector:3", "direction": "vector:3"},
+                                   {"direction": (("zero", lambda: np.zeros(3)),)})
+    p, lo = rng.normal(size=3), float(rng.uniform(0.1, 1))
+    case = Case(AimTarget, (), {"point": p, "distance_range": (lo, lo + 0.2)}, check=lambda t: g.close(t.point, p))
+    return maybe_junk_argument(rng, case, {"point": "vector:3", "distance_range": "vector:2"},
+                               {"distance_range": (("reversed", lambda: (1.0, 0.5)), ("negative", lambda: (-1.0, 0.5)))})
+
+
+def patient_more(rng):
+    system = _system(rng)
+    patient = ParametricPatientOnTable(system)
+    which = _pick(rng, ("obstacles", "pose", "centre"))
+    if which == "obstacles":
+        prefix = _pick(rng, ["patient", "p"])
+        case = Case(patient.obstacles, (), {"prefix": prefix}, check=lambda obs: all(
+            o.name.startswith(prefix + "_") for o in obs) and len(obs) == len(patient.segments))
+        return _prefix_junk(rng, case)
+    if which == "pose":
+        return Case(patient.pose, check=lambda T: g.is_rotation(T[:3, :3]) and g.close(T[:3, 3], patient.origin))
+    return Case(patient.centre_of_mass, check=lambda c: abs(c[2] - patient.origin[2]) < 0.5)
+
+
+def ParametricPatientOnTable(system):
+    from carmkin.patient import ParametricPatient
+
+    return ParametricPatient.on_table(system)
+
+
+def _prefix_junk(rng, case):
+    """A prefix of obstacle names: a string; junk of other types is refused."""
+    from fuzz_junk import ANY, OBJECT
+
+    if rng.random() < 0.5:
+        return case
+    label, make = _pick(rng, tuple(item for item in ANY + OBJECT if item[0] != "str"))
+    return Case(case.fn, case.args, {"prefix": make()}, None, f"prefix ({label})", named="prefix")
+
+
+ENTRIES.update({
+    "reproduce (room, task, procedure, metric)": (reproduce_room_steps, 0.1),
+    "singularity (jacobians, scaling, axes, grid)": (singularity_more, 0.5),
+    "presets (parse, provenance, save)": (presets_more, 0.3), "qp targets": (qp_targets, 0.5),
+    "patient (obstacles, pose, centre of mass)": (patient_more, 0.3),
+})

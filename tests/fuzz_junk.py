@@ -87,6 +87,8 @@ def wrong_for(kind: str) -> tuple:
         table = FLAG
     elif kind in ("system", "rng", "model"):
         table = OBJECT
+    elif kind == "label":  # any string (a name shown to the user): junk is every other type
+        table = tuple(item for item in OBJECT if item[0] != "str")
     else:
         raise ValueError(f"unknown argument kind {kind!r}")
     table = ANY + table

@@ -249,6 +249,8 @@ class ParametricPatient:
         ``<prefix>_<segment>``)."""
         from carmkin.world.obstacles import Obstacle
 
+        if not isinstance(prefix, str):
+            raise PatientModelError(f"prefix must be a string (the obstacles' names start with it), got {prefix!r:.60}")
         T = self.pose()
         out = []
         for s in self.segments:

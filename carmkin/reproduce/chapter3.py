@@ -41,10 +41,11 @@ from carmkin.errors import CarmkinError, SimulationError, UnreachablePanoramaErr
 from carmkin.seed import SEED_TABLE_3_1, SEED_TABLE_3_2
 
 from .error_model import ErrorModel, count, generator
-from .repositioning import build_model, make_room, statistics
+from .repositioning import build_model, check_room, make_room, statistics
 from .stitching import (
     _in_image,
     acquire,
+    check_overlap,
     outward_aims,
     phantom_frame,
     plane_in_panorama,
@@ -226,6 +227,8 @@ def metric_measurements(room, rng: np.random.Generator, overlap: float = 0.1, pr
     """One Table 3.2 procedure: method ("A", "B", "C") -> the four measured values (mm, degrees); A and B
     by ``protocol`` (:data:`PROTOCOLS`)."""
     protocol = _protocol(protocol)
+    check_room(room, rng)
+    overlap = check_overlap(overlap)
     system, model = room.system, room.model
     offset = METRIC_ABOVE_PATTERN + model.plane_distance * rng.normal()
 

@@ -43,6 +43,7 @@ import numpy as np
 
 from carmkin.errors import CarmkinError, SimulationError
 from carmkin.seed import SEED_RESULTS
+from carmkin.validation import flag, instance
 
 from carmkin.reposition.experiment import statistics
 
@@ -98,6 +99,19 @@ class Room:
     config: object
 
 
+def _end(end) -> str:
+    if not isinstance(end, str) or end not in ENDS:
+        raise SimulationError(f"end must be one of {ENDS}, got {end!r:.60}")
+    return end
+
+
+def check_room(room, rng) -> None:
+    """:class:`SimulationError` naming the argument unless ``room`` is a :class:`Room` (:func:`make_room`) and
+    ``rng`` a numpy Generator (the public steps of one experiment take both)."""
+    instance(room, Room, "room", error=SimulationError, hint="make_room(...)")
+    instance(rng, np.random.Generator, "rng", error=SimulationError, hint="np.random.default_rng(seed)")
+
+
 def make_room(system, model: ErrorModel, rng: np.random.Generator, guidance=None, calibrate: bool = True) -> Room:
     """A room for ``system`` (made square-pixel) with the pattern mounted and calibrated (§3.3.3; with
     ``calibrate=False`` the guidance knows the true mount); ``guidance``:
@@ -107,6 +121,8 @@ def make_room(system, model: ErrorModel, rng: np.random.Generator, guidance=None
     from carmkin.world import World as CollisionWorld
 
     system, model, guidance = study_inputs(system, model, guidance)
+    instance(rng, np.random.Generator, "rng", error=SimulationError)
+    calibrate = flag(calibrate, "calibrate", error=SimulationError)
     system = square_pixel_system(system)
     noise = filtered_noise(model.corner_noise_px, model.frames)
     world = World.create(system, rng, mount_error=model.mount_error, corner_noise_px=noise)
@@ -193,6 +209,9 @@ def run_task(room: Room, rng: np.random.Generator, end: str = "guided") -> Task:
     from carmkin.reposition import experiment
     from carmkin.reposition.guidance import read_joints
 
+    check_room(room, rng)
+    _end(end)
+
     system, model = room.system, room.model
     q_ref = experiment.sample_reference(room.world, room.config, rng, room.scene)
     markers = experiment.xray_markers(room.world, q_ref, rng)
@@ -242,8 +261,7 @@ def run(system, model: ErrorModel = ErrorModel(), tasks: int = 10, seed: int = 0
         end: str = "guided") -> list[Task]:
     """``tasks`` §4.6.2 tasks in one room (numpy seed ``seed``; ``guidance`` as in :func:`make_room`;
     ``end``: :data:`ENDS`)."""
-    if not isinstance(end, str) or end not in ENDS:
-        raise SimulationError(f"end must be one of {ENDS}, got {end!r}")
+    _end(end)
     return repeat(lambda room, rng: run_task(room, rng, end), system, model, tasks, seed, guidance)
 
 
