@@ -474,11 +474,11 @@ ENTRIES = {
     "reproduce.repositioning.run": (reproduce_run, 0.05), "reproduce.stitching.run": (reproduce_stitching, 0.05),
     "reproduce.chapter3.table_3_1": (reproduce_table_3_1, 0.05), "reproduce.fit.fit": (reproduce_fit, 0.1),
     "reproduce.verdict.verdict": (reproduce_verdict, 0.1), "reproduce.verdict.judge": (reproduce_judge, 0.5),
-    "reproduce.ErrorModel": (error_model, 0.5), "sweeps.plan_sweep": (plan_a_sweep, 0.3),
-    "sweeps.export": (sweep_export, 0.5), "patient.ParametricPatient": (parametric_patient, 0.5),
-    "patient.ParametricPatient.on_table": (patient_on_table, 0.5), "patient.floating": (floating_patient, 0.2),
-    "qp.QPIKOptions": (qp_options, 0.5), "qp_ik.solve (arguments, q_current past a range)": (qp_solve_args, 0.3),
-    "views.plan_view (q_current past a range)": (plan_view_out_of_range, 0.1),
+    "reproduce.ErrorModel": (error_model, 0.5), "sweeps.plan_sweep": (plan_a_sweep, 1),
+    "sweeps.export": (sweep_export, 1), "patient.ParametricPatient": (parametric_patient, 0.5),
+    "patient.ParametricPatient.on_table": (patient_on_table, 0.5), "patient.floating": (floating_patient, 0.5),
+    "qp.QPIKOptions": (qp_options, 0.5), "qp_ik.solve (arguments, q_current past a range)": (qp_solve_args, 1),
+    "views.plan_view (q_current past a range)": (plan_view_out_of_range, 0.5),
     "singularity (arguments)": (singularity_args, 0.5), "presets.system_from_dict (fields)": (preset_fields, 0.5),
     "presets.load_preset (junk)": (load_junk_preset, 0.3),
 }
@@ -622,3 +622,31 @@ ENTRIES.update({
     "presets (parse, provenance, save)": (presets_more, 0.3), "qp targets": (qp_targets, 0.5),
     "patient (obstacles, pose, centre of mass)": (patient_more, 0.3),
 })
+
+
+def cli_failed_sweep(rng):
+    """``carmkin sweep plan`` of an arc that does not fit (past the orbital range) with every export asked for:
+    exit status 1 and no geometry file written; an arc that fits: exit 0 and every file written."""
+    import contextlib
+    import io
+
+    from carmkin.cli import main
+
+    arc = float(rng.choice([60.0, 300.0, 360.0]))
+    folder = Path(tempfile.mkdtemp())
+    files = {"--astra": folder / "a.npy", "--tigre": folder / "t.npz", "--rtk-xml": folder / "r.xml"}
+    argv = ["sweep", "plan", "--arc-deg", str(arc), "--views", str(int(rng.integers(2, 8)))]
+    for flag_name, path in files.items():
+        argv += [flag_name, str(path)]
+
+    def run():
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+            return main(argv)
+
+    def check(status):
+        written = [p.exists() for p in files.values()]
+        return (status == 0 and all(written)) if arc == 60.0 else (status == 1 and not any(written))
+    return Case(run, check=check)
+
+
+ENTRIES["cli: sweep plan exports (failed arcs write nothing)"] = (cli_failed_sweep, 0.2)

@@ -18,6 +18,10 @@ PRESET = carmkin.load_preset("siremobile-iso-c3d")
 MOTORIZED = carmkin.load_preset("siremobile-iso-c3d-motorized-table")
 
 
+def _room():
+    return repositioning.make_room(PRESET, ErrorModel(), np.random.default_rng(0))
+
+
 def _sweep(arc):
     return plan_sweep(PRESET, np.zeros(3), arc, 6)
 
@@ -60,6 +64,7 @@ CASES = [
         _sweep(190.0), geometry_only="no")),
     ("volume_centre", SweepError, lambda: export.tigre_geometry(
         _sweep(190.0), volume_centre=b"1")),
+    ("layout", SweepError, lambda: export.rtk_frames(_sweep(190.0), layout=np.array(["image", 1], dtype=object))),
     # the patient
     ("mass", PatientModelError, lambda: ParametricPatient(height=0.4, mass=650.0)),
     ("system", PatientModelError, lambda: ParametricPatient.on_table(None)),
@@ -74,7 +79,20 @@ CASES = [
                                                        weights=np.full(MOTORIZED.nq, "1"))),
     ("prefer", QPIKError, lambda: carmkin.qp_ik.solve(PRESET, PRESET.fk(np.zeros(6)),
                                                       prefer=np.array(["x", 1], dtype=object))),
+    # one experiment's public steps
+    ("rng", SimulationError, lambda: repositioning.make_room(PRESET, ErrorModel(), 3)),
+    ("calibrate", SimulationError, lambda: repositioning.make_room(PRESET, ErrorModel(), np.random.default_rng(0),
+                                                                   calibrate="no")),
+    ("room", SimulationError, lambda: stitching.run_procedure({}, np.random.default_rng(0))),
+    ("end", SimulationError, lambda: repositioning.run_task(_room(), np.random.default_rng(0), end=True)),
+    ("overlap", SimulationError, lambda: stitching.run_procedure(_room(), np.random.default_rng(0), overlap=[])),
+    ("overlap", SimulationError, lambda: chapter3.metric_measurements(_room(), np.random.default_rng(0), overlap=1.5)),
+    ("arms", PatientModelError, lambda: ParametricPatient(arms=np.array(["side", 1], dtype=object))),
+    ("prefix", PatientModelError, lambda: ParametricPatient.on_table(PRESET).obstacles(prefix=None)),
+    # presets: every error of a text names its source
+    ("mine.toml", carmkin.errors.PresetError, lambda: carmkin.presets.parse_preset("", "mine.toml")),
     # singularity
+    ("reference_frame", SingularityError, lambda: carmkin.singularity.jacobian(PRESET, np.zeros(6), "world")),
     ("length", SingularityError, lambda: carmkin.singularity.measure_map(PRESET, np.zeros(6), (0, 5), 3,
                                                                          length=np.array("1"))),
     ("pair", SingularityError, lambda: carmkin.singularity.measure_map(PRESET, np.zeros(6), np.array("ab"), 3)),

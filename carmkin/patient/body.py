@@ -160,7 +160,7 @@ class ParametricPatient:
         m = real_scalar(self.mass, "mass", error=PatientModelError, low=MASS_RANGE[0], high=MASS_RANGE[1], unit="kg")
         if not isinstance(self.position, str) or self.position.upper() not in PATIENT_POSITIONS:
             raise PatientModelError(f"position must be one of {', '.join(PATIENT_POSITIONS)}, got {self.position!r}")
-        if self.arms not in ("side", "up"):
+        if not isinstance(self.arms, str) or self.arms not in ("side", "up"):
             raise PatientModelError(f"arms must be 'side' or 'up', got {self.arms!r}")
         origin = point_array(self.origin, "origin", error=PatientModelError)
         if len(origin) != 1:

@@ -162,10 +162,10 @@ RTK_LAYOUTS = ("image", "rotation")
 def rtk_detector_axes(sweep, layout: str = "image", geometry_only: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Unit vectors (u, v) of the RTK detector axes in our source frame for ``layout`` (:data:`RTK_LAYOUTS`)."""
     sweep = feasible(sweep, geometry_only)
+    if not isinstance(layout, str) or layout not in RTK_LAYOUTS:
+        raise SweepError(f"layout must be one of {', '.join(RTK_LAYOUTS)}, got {layout!r:.60}")
     if layout == "image":
         return np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
-    if layout != "rotation":
-        raise SweepError(f"layout must be one of {', '.join(RTK_LAYOUTS)}, got {layout!r}")
     from .trajectory import rotation_axis
 
     mid = sweep.n_views // 2
