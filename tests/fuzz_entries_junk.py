@@ -545,7 +545,7 @@ def singularity_more(rng):
     else:
         n = int(rng.integers(2, 40))
         case = Case(sing.grid_axis, (), {"system": system, "joint": "orbital", "n": n}, check=lambda x: len(x) == n)
-        spec = {"system": "system", "joint": "name", "n": "count"}
+        spec = {"system": "system", "joint": "joint", "n": "count"}
     return maybe_junk_argument(rng, case, spec)
 
 

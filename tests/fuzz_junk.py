@@ -83,6 +83,8 @@ def wrong_for(kind: str) -> tuple:
         table = tuple(item for item in NUMBER + COUNT if item[0] != "10**30")
     elif kind == "name":
         table = NAME
+    elif kind == "joint":  # a joint's name or index: an int in range is not junk, a negative or too large one is
+        table = tuple(item for item in NAME if item[0] != "int") + (("-1", lambda: -1), ("99", lambda: 99))
     elif kind == "flag":
         table = FLAG
     elif kind in ("system", "rng", "model"):
