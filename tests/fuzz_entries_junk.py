@@ -502,15 +502,18 @@ def reproduce_room_steps(rng):
                     check=lambda room: room.system.nq == PRESET.nq)
         return junk_argument(rng, case, {"rng": "rng", "calibrate": "flag"}) if rng.random() < 0.8 else case
     if which == "task":
-        case = Case(repositioning.run_task, (), {"room": _ROOM, "rng": np.random.default_rng(2), "end": "box"})
-        return junk_argument(rng, case, {"room": "model", "rng": "rng", "end": "name"})
+        case = Case(repositioning.run_task, (), {"room": _ROOM, "rng": np.random.default_rng(2), "end": "box"},
+                    check=lambda task: task.image_errors.ndim == 1)
+        return maybe_junk_argument(rng, case, {"room": "model", "rng": "rng", "end": "name"}, fraction=0.8)
     if which == "procedure":
-        case = Case(stitching.run_procedure, (), {"room": _ROOM, "rng": np.random.default_rng(3), "overlap": 0.1})
-        return junk_argument(rng, case, {"room": "model", "rng": "rng", "overlap": "real"},
-                             {"overlap": (("1.5", lambda: 1.5), ("-0.1", lambda: -0.1))})
-    case = Case(chapter3.metric_measurements, (), {"room": _ROOM, "rng": np.random.default_rng(4), "overlap": 0.1})
-    return junk_argument(rng, case, {"room": "model", "rng": "rng", "overlap": "real", "protocol": "name"},
-                         {"overlap": (("1.5", lambda: 1.5), ("-0.1", lambda: -0.1))})
+        case = Case(stitching.run_procedure, (), {"room": _ROOM, "rng": np.random.default_rng(3), "overlap": 0.1},
+                    check=lambda p: p.success in (True, False) and (p.success or bool(p.reason)))
+        return maybe_junk_argument(rng, case, {"room": "model", "rng": "rng", "overlap": "real"},
+                                   {"overlap": (("1.5", lambda: 1.5), ("-0.1", lambda: -0.1))}, fraction=0.8)
+    case = Case(chapter3.metric_measurements, (), {"room": _ROOM, "rng": np.random.default_rng(4), "overlap": 0.1},
+                check=lambda r: set(r) == {"A", "B", "C"} and all(len(v) == 4 for v in r.values()))
+    return maybe_junk_argument(rng, case, {"room": "model", "rng": "rng", "overlap": "real", "protocol": "name"},
+                               {"overlap": (("1.5", lambda: 1.5), ("-0.1", lambda: -0.1))}, fraction=0.8)
 
 
 def singularity_more(rng):
