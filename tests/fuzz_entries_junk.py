@@ -313,18 +313,44 @@ def patient_on_table(rng):
     return maybe_junk_argument(rng, case, spec, extra, fraction=0.5)
 
 
-def floating_patient(rng):
-    """A patient placed by origin: resting on the top is accepted in a world; floating above it is refused."""
+def _lifted(rng, system):
+    """A patient placed by origin: resting on the top (lift 0) or floating 5 cm to 2 m above it (Y0 is down)."""
     from carmkin.patient import ParametricPatient
+
+    resting = ParametricPatient.on_table(system)
+    lift = float(rng.choice([0.0, 0.05, 0.5, 2.0]))
+    return lift, ParametricPatient(origin=(resting.origin[0], resting.origin[1] - lift, resting.origin[2]))
+
+
+def floating_patient(rng):
+    """A world or a sweep with a patient: resting on the top is accepted; floating above it is refused."""
+    from carmkin.sweeps import plan_sweep
     from carmkin.world import World
 
     system = _system(rng)
-    resting = ParametricPatient.on_table(system)
-    lift = float(rng.choice([0.0, 0.05, 0.5, 2.0]))
-    patient = ParametricPatient(origin=(resting.origin[0], resting.origin[1] - lift, resting.origin[2]))
+    lift, patient = _lifted(rng, system)
+    if rng.random() < 0.5:
+        case = Case(World, (system, patient), check=lambda w: len(w.obstacles) == len(patient.obstacles()))
+    else:
+        case = Case(plan_sweep, (system, np.zeros(3), 30.0, 3, patient), check=lambda s: [o.name for o in s.obstacles] == [
+            o.name for o in patient.obstacles()])
     if lift == 0.0:
-        return Case(World, (system, patient), check=lambda w: len(w.obstacles) == len(patient.obstacles()))
-    return Case(World, (system, patient), junk=f"patient (floating {lift} m above the table)", named="patient")
+        return case
+    return Case(case.fn, case.args, junk=f"patient (floating {lift} m above the table)", named="patient")
+
+
+def plan_view_floating_patient(rng):
+    """plan_view with a patient floating above the table: refused (as by the world and the sweeps)."""
+    from carmkin.views import View, plan_view
+
+    system = _system(rng)
+    lift, patient = _lifted(rng, system)
+    view = View.from_angles(float(rng.uniform(-60, 60)), float(rng.uniform(-30, 30)), np.zeros(3))
+    case = Case(plan_view, (system, view, patient), {"nearest": False},
+                check=lambda plan: not plan.success or _in_range(system, plan.q))
+    if lift == 0.0:
+        return case
+    return Case(case.fn, case.args, case.kwargs, junk=f"patient (floating {lift} m above the table)", named="patient")
 
 
 # --- qp ---------------------------------------------------------------------------------------------------------
@@ -479,6 +505,7 @@ ENTRIES = {
     "patient.ParametricPatient.on_table": (patient_on_table, 0.5), "patient.floating": (floating_patient, 0.5),
     "qp.QPIKOptions": (qp_options, 0.5), "qp_ik.solve (arguments, q_current past a range)": (qp_solve_args, 1),
     "views.plan_view (q_current past a range)": (plan_view_out_of_range, 0.5),
+    "views.plan_view (patient floating above the table)": (plan_view_floating_patient, 0.2),
     "singularity (arguments)": (singularity_args, 0.5), "presets.system_from_dict (fields)": (preset_fields, 0.5),
     "presets.load_preset (junk)": (load_junk_preset, 0.3),
 }

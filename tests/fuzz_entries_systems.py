@@ -263,4 +263,7 @@ ENTRIES = {
 #: Entry points whose findings are in files other helpers own (reported in issue 19's work, fixed by the
 #: owner; a non-strict xfail in tests/test_fuzz.py until then).
 KNOWN = {
+    "views.plan_view (patient floating above the table)": "issue 31: views/plan.py world_for builds the world from "
+    "the patient's obstacles, so ParametricPatient.check_placement is never called (World and plan_sweep call it); "
+    "one line in world_for, owned by the views engineer",
 }

@@ -71,6 +71,7 @@ CASES = [
     ("chest_z", PatientModelError, lambda: ParametricPatient.on_table(PRESET, chest_z=5.0)),
     ("lateral_x", PatientModelError, lambda: ParametricPatient.on_table(PRESET, lateral_x=-3.0)),
     ("patient", PatientModelError, lambda: carmkin.world.World(PRESET, ParametricPatient())),  # floating
+    ("patient", PatientModelError, lambda: plan_sweep(PRESET, np.zeros(3), 30.0, 3, ParametricPatient())),
     # the QP
     ("QPIKOptions.progress_window", QPIKError, lambda: QPIKOptions(progress_window=2.5)),
     ("QPIKOptions.max_iterations", QPIKError, lambda: QPIKOptions(max_iterations=float("inf"))),
