@@ -20,7 +20,7 @@ from pathlib import Path
 import fuzz_geometry as g
 import numpy as np
 from fuzz_engine import Case
-from fuzz_entries_systems import MOTORIZED, PRESET, SYSTEMS, _q, _system
+from fuzz_entries_systems import PRESET, _q, _system
 from fuzz_junk import junk_argument, maybe_junk_argument
 
 import carmkin

@@ -138,8 +138,8 @@ class Fit:
 def _grid(values, name: str, unit: str, high: float) -> np.ndarray:
     values = real_array(values, name, (None,), error=SimulationError, unit=unit)
     if values.size == 0 or np.any(values < 0) or np.any(values > high):
-        raise SimulationError(f"{name} must be a non-empty grid of values in [0, {high:g}]{f' ({unit})' if unit else ''}, "
-                              f"got {values.tolist()}")
+        raise SimulationError(f"{name} must be a non-empty grid of values in [0, {high:g}]"
+                              f"{f' ({unit})' if unit else ''}, got {values.tolist()}")
     return values
 
 
