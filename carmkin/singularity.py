@@ -100,11 +100,18 @@ def singularity_distances(system: CArmSystem, q) -> dict[SingularCase, np.ndarra
 
 
 # --- Pinocchio ---------------------------------------------------------------------------------------------
+def _check_reference_frame(reference_frame) -> None:
+    if not isinstance(reference_frame, pin.ReferenceFrame):
+        raise SingularityError(f"reference_frame must be a pinocchio.ReferenceFrame (e.g. pin.LOCAL_WORLD_ALIGNED), "
+                               f"got {reference_frame!r:.60}")
+
+
 def jacobian(system: CArmSystem, q, reference_frame=REFERENCE_FRAME) -> np.ndarray:
     """Pinocchio's Jacobian (6, nq) of ``xray_source``: rows ``[v; ω]`` (m/s, rad/s), see module docstring."""
     q = check_configuration(q, _check_system(system).nq)
     if q.ndim != 1:
         raise SingularityError(f"jacobian takes one configuration (nq,), got shape {q.shape}; use jacobians")
+    _check_reference_frame(reference_frame)
     model = system.pinocchio()[0]
     data = model.createData()
     return pin.computeFrameJacobian(model, data, q, model.getFrameId(FRAME), reference_frame).copy()
@@ -113,6 +120,7 @@ def jacobian(system: CArmSystem, q, reference_frame=REFERENCE_FRAME) -> np.ndarr
 def jacobians(system: CArmSystem, q, reference_frame=REFERENCE_FRAME) -> np.ndarray:
     """Jacobians (N, 6, nq) for configurations (N, nq) (one Pinocchio call per configuration)."""
     q = np.atleast_2d(check_configuration(q, _check_system(system).nq))
+    _check_reference_frame(reference_frame)
     model = system.pinocchio()[0]
     data = model.createData()
     frame_id = model.getFrameId(FRAME)
@@ -369,9 +377,12 @@ def joint_index(joint, system: CArmSystem | None = None) -> int:
 
 
 def _pair(system: CArmSystem, pair) -> tuple[int, int]:
-    if isinstance(pair, (str, bytes)) or not hasattr(pair, "__len__") or len(pair) != 2:
-        raise SingularityError(f"pair must be two joints (names or indices), got {pair!r}")
-    i, j = joint_index(pair[0], system), joint_index(pair[1], system)
+    if isinstance(pair, (str, bytes)) or np.ndim(pair) != 1 or len(pair) != 2:
+        raise SingularityError(f"pair must be two joints (names or indices), got {pair!r:.80}")
+    try:
+        i, j = joint_index(pair[0], system), joint_index(pair[1], system)
+    except SingularityError as exc:
+        raise SingularityError(f"pair: {exc}") from None
     if i == j:
         raise SingularityError(f"a map needs two different joints, got {system.joint_names[i]} twice")
     return i, j
@@ -407,6 +418,7 @@ def measure_map(system: CArmSystem, q, pair: tuple[int, int], n: int = 61, measu
         raise SingularityError(f"measure_map takes one configuration ({system.nq},), got shape {q.shape}")
     if not isinstance(measure, str) or measure not in MAP_MEASURES:
         raise SingularityError(f"unknown measure {measure!r}: use one of {', '.join(MAP_MEASURES)}")
+    length = _check_length(system, length)  # checked whatever the measure (the determinant does not read it)
     i, j = _pair(system, pair)
     x, y = grid_axis(system, i, n), grid_axis(system, j, n)
     grid = np.broadcast_to(q, (len(y), len(x), system.nq)).copy()

@@ -363,6 +363,14 @@ def integer(value, name: str, *, low: int | None = None, high: int | None = None
     return int(value)
 
 
+def flag(value, name: str, *, error: type[CarmkinError] = InvalidParameterError) -> bool:
+    """``value`` as a bool when it is True or False (Python or numpy), else ``error`` naming ``name``: a string
+    ``"False"`` would read as True, None or a number as a guess."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise error(f"{name} must be True or False, got {_describe(value)}")
+    return bool(value)
+
+
 def instance(value, kind: type, name: str, *, error: type[CarmkinError] = InvalidParameterError,
              hint: str = ""):
     """``value`` when it is a ``kind`` (e.g. a :class:`carmkin.CArmSystem`), else ``error`` naming ``name``."""

@@ -40,13 +40,15 @@ OUTCOMES = ("ok", "typed", "untyped", "wrong", "hang")
 @dataclass
 class Case:
     """One generated call: ``fn(*args, **kwargs)``; ``check(result) -> bool`` is the oracle for valid input;
-    ``junk`` names the argument replaced by junk (the call must then raise a typed error)."""
+    ``junk`` names the argument replaced by junk (the call must then raise a typed error); ``named``: a word
+    that typed error's message must contain (the argument's name), else the case is untyped."""
 
     fn: Callable
     args: tuple = ()
     kwargs: dict = field(default_factory=dict)
     check: Callable[[Any], bool] | None = None
     junk: str | None = None
+    named: str | None = None
 
 
 @dataclass
@@ -116,6 +118,8 @@ def run_case(case: Case) -> tuple[str, bool, str]:
             outcome, detail = "hang", f"ran past {CALL_LIMIT_S} s"
         except carmkin.CarmkinError as exc:
             outcome, detail = ("typed", "") if str(exc) else ("untyped", "a typed error without a message")
+            if outcome == "typed" and case.named and case.named not in str(exc):
+                outcome, detail = "untyped", f"a typed error that does not name {case.named}: {exc}"
         except Exception as exc:  # noqa: BLE001 - every other exception is a finding
             frame = traceback.extract_tb(exc.__traceback__)[-1]
             outcome, detail = "untyped", f"{type(exc).__name__}: {exc} ({frame.filename}:{frame.lineno})"

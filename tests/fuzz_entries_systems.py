@@ -262,5 +262,4 @@ ENTRIES = {
 }
 #: Entry points whose findings are in files other helpers own (reported in issue 19's work, fixed by the
 #: owner; a non-strict xfail in tests/test_fuzz.py until then).
-KNOWN = {
-}
+KNOWN: dict = {}  # issue 31's floating patient in plan_view was fixed at merge (views/plan.py world_for)

@@ -277,12 +277,14 @@ def test_panorama_plan(length, overlap):
 # --- issue 19: every entry point with its oracle (the quick slice of benchmarks/fuzz.py) -----------------
 import fuzz_engine  # noqa: E402
 import fuzz_entries  # noqa: E402
+import fuzz_entries_junk  # noqa: E402
 import fuzz_entries_more  # noqa: E402
 import fuzz_entries_systems  # noqa: E402
 
-#: Cases per entry point in CI (benchmarks/fuzz.py --cases 50000 is the long run).
+#: Cases per entry point in CI (benchmarks/fuzz.py --cases 100000 is the long run).
 SLICE_CASES = 40 * SCALE
-ALL_ENTRIES = {**fuzz_entries.ENTRIES, **fuzz_entries_systems.ENTRIES, **fuzz_entries_more.ENTRIES}
+ALL_ENTRIES = {**fuzz_entries.ENTRIES, **fuzz_entries_systems.ENTRIES, **fuzz_entries_more.ENTRIES,
+               **fuzz_entries_junk.ENTRIES}
 
 
 @pytest.mark.parametrize("name", [

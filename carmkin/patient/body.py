@@ -47,6 +47,14 @@ DENSITIES = {"head": 1110.0, "trunk": 1030.0, "upper_arm": 1070.0, "forearm": 11
 #: Accepted body height (m) and mass (kg): a newborn to the tallest, a premature infant to the heaviest.
 HEIGHT_RANGE = (0.4, 2.8)
 MASS_RANGE = (1.0, 650.0)
+#: Share of the volume its mass needs (Winter's densities) the body's segments must hold: below it, segments are
+#: balls far too small for their masses (a mass far too large for the height: 60 kg at 0.4 m holds 58 %) and
+#: the body is refused. Real extremes pass (600 kg at 1.8 m holds 91 %, 200 kg at 1 m 80 %; a segment that is
+#: a ball loses some volume, which the model accepts).
+VOLUME_SHARE = 0.75
+#: A patient placed in a world rests on the table top: its lowest point within this (m) of the top surface
+#: (neither floating above it nor sunk into it).
+REST_TOLERANCE = 0.001
 
 
 @dataclass(frozen=True)
@@ -79,6 +87,20 @@ def capsule_radius(volume: float, length: float) -> float:
 
 def _segment_volume(name: str, mass: float) -> float:
     return MASS_FRACTIONS[name] * mass / DENSITIES[name]
+
+
+def _kind(segment: "Segment") -> str:
+    """The Winter segment of a body part (``thigh_left`` -> ``thigh``)."""
+    return segment.name if segment.name in MASS_FRACTIONS else segment.name.rsplit("_", 1)[0]
+
+
+def segment_volume(segment: "Segment") -> float:
+    """Volume (m³) of a segment's shape: a box's extents multiplied, a capsule of total length L = |b − a|
+    (caps included) ``π r² L − (2/3) π r³``."""
+    if segment.shape == "box":
+        return float(np.prod(segment.extents))
+    length, r = float(np.linalg.norm(np.subtract(segment.b, segment.a))), segment.radius
+    return math.pi * r * r * length - 2.0 / 3.0 * math.pi * r ** 3
 
 
 def body_segments(height: float, mass: float, arms: str = "side") -> tuple[Segment, ...]:
@@ -138,7 +160,7 @@ class ParametricPatient:
         m = real_scalar(self.mass, "mass", error=PatientModelError, low=MASS_RANGE[0], high=MASS_RANGE[1], unit="kg")
         if not isinstance(self.position, str) or self.position.upper() not in PATIENT_POSITIONS:
             raise PatientModelError(f"position must be one of {', '.join(PATIENT_POSITIONS)}, got {self.position!r}")
-        if self.arms not in ("side", "up"):
+        if not isinstance(self.arms, str) or self.arms not in ("side", "up"):
             raise PatientModelError(f"arms must be 'side' or 'up', got {self.arms!r}")
         origin = point_array(self.origin, "origin", error=PatientModelError)
         if len(origin) != 1:
@@ -148,18 +170,56 @@ class ParametricPatient:
         object.__setattr__(self, "position", self.position.upper())
         object.__setattr__(self, "origin", tuple(float(v) for v in origin[0]))
         object.__setattr__(self, "segments", body_segments(h, m, self.arms))
+        held = sum(segment_volume(seg) for seg in self.segments)
+        needed = sum(_segment_volume(_kind(seg), m) for seg in self.segments)
+        if held < VOLUME_SHARE * needed:
+            raise PatientModelError(
+                f"mass {m:g} kg is too large for height {h:g} m: the body's segments hold {held * 1e3:.1f} L of the "
+                f"{needed * 1e3:.1f} L that mass needs at Winter's densities (a lighter mass or a taller height)")
 
     @classmethod
     def on_table(cls, system, height: float = 1.75, mass: float = 75.0, position: str = "HFS",
                  chest_z: float = 0.0, lateral_x: float = 0.0, arms: str = "side") -> "ParametricPatient":
         """The patient resting on ``system``'s table top: its lowest point on the top surface, the chest
         (reference point) at ``chest_z`` along the table (m, Z0) and ``lateral_x`` across it (m, X0)."""
+        from carmkin.model.system import require_system
+
+        require_system(system, PatientModelError)
         probe = cls(height, mass, position, (0.0, 0.0, 0.0), arms)
         surface = system.table.top_center[1] - system.table.top_size[1] / 2  # Y0 points down
         lowest = float(np.max(probe.surface_points()[:, 1]))
         z = real_scalar(chest_z, "chest_z", error=PatientModelError, unit="m")
         x = real_scalar(lateral_x, "lateral_x", error=PatientModelError, unit="m")
-        return cls(height, mass, position, (x, surface - lowest, z), arms)
+        patient = cls(height, mass, position, (x, surface - lowest, z), arms)
+        patient.check_placement(system, "chest_z, lateral_x")
+        return patient
+
+    def centre_of_mass(self) -> np.ndarray:
+        """The body's centre of mass (3,) in the table frame (m): the segments' centres weighted by Winter's mass
+        fractions."""
+        T = self.pose()
+        weights = np.array([MASS_FRACTIONS[_kind(s)] for s in self.segments])
+        centres = np.array([s.a if s.shape == "box" else np.add(s.a, s.b) / 2 for s in self.segments])
+        return T[:3, :3] @ (weights @ centres / weights.sum()) + T[:3, 3]
+
+    def check_placement(self, system, name: str = "patient") -> None:
+        """:class:`PatientModelError` naming ``name`` unless the body rests on ``system``'s table top: its lowest
+        point on the top surface (within :data:`REST_TOLERANCE`, not floating above it nor sunk into it) and
+        its centre of mass over the top (not off the table's end or side)."""
+        table = system.table
+        surface = table.top_center[1] - table.top_size[1] / 2  # Y0 points down
+        gap = surface - float(np.max(self.surface_points()[:, 1]))
+        if abs(gap) > REST_TOLERANCE:
+            where = f"floats {gap * 1e3:.1f} mm above" if gap > 0 else f"sinks {-gap * 1e3:.1f} mm into"
+            raise PatientModelError(f"{name}: the patient {where} the table top (at most {REST_TOLERANCE * 1e3:g} mm; "
+                                    "ParametricPatient.on_table places it on the top)")
+        com = self.centre_of_mass()
+        for axis, label in ((2, "end"), (0, "side")):
+            offset = com[axis] - table.top_center[axis]
+            if abs(offset) > table.top_size[axis] / 2:
+                raise PatientModelError(
+                    f"{name}: the patient's centre of mass is {(abs(offset) - table.top_size[axis] / 2) * 1e3:.0f} mm "
+                    f"beyond the table top's {label} (the top spans ±{table.top_size[axis] / 2 * 1e3:.0f} mm)")
 
     def pose(self) -> np.ndarray:
         """Pose (4, 4) of the patient frame (LPS, m) in the table frame 0."""
@@ -189,6 +249,8 @@ class ParametricPatient:
         ``<prefix>_<segment>``)."""
         from carmkin.world.obstacles import Obstacle
 
+        if not isinstance(prefix, str):
+            raise PatientModelError(f"prefix must be a string (the obstacles' names start with it), got {prefix!r:.60}")
         T = self.pose()
         out = []
         for s in self.segments:

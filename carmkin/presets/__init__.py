@@ -128,8 +128,10 @@ def _build(data: dict, origin: dict[str, str], label: str, default_name: str | N
     check_merged(data, origin, label)
     try:
         return _system(data, default_name or Path(label).stem)
-    except PresetError:
-        raise
+    except PresetError as exc:  # named by the file (or text) it came from
+        if str(exc).startswith(label):
+            raise
+        raise PresetError(f"{label}: {exc}") from None
     except InvalidParameterError as exc:  # a cross-key check of the model (e.g. the setup axes)
         raise PresetError(f"{label}: {exc}") from None
 

@@ -9,12 +9,16 @@ import numpy as np
 from carmkin.errors import (
     QPIKError,  # noqa: F401 (defined there, raised here)
 )
+from carmkin.validation import MAGNITUDE_LIMIT, integer
 from carmkin.world.tolerances import DEFAULT_MARGIN
 
 #: A run counts as clear of obstacles when every pair is at least ``safety_margin - MARGIN_TOLERANCE`` apart (m).
 MARGIN_TOLERANCE = 1e-6
 #: A joint within this of a bound (m or rad) is reported as "at its limit" in a stalled run.
 AT_LIMIT_TOLERANCE = 1e-9
+#: Largest count of QPIKOptions (max_iterations, progress_window): a guard against a float such as 1e300 read
+#: as a count, far above any run (the default is 100 iterations).
+MAX_ITERATIONS = 10_000_000
 #: Frame of the X-ray source, the end effector of the C-arm chain.
 SOURCE_FRAME = "xray_source"
 
@@ -49,6 +53,8 @@ class QPIKOptions:
             value = getattr(self, f.name)
             if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
                 raise QPIKError(f"QPIKOptions.{f.name} must be a real number, got {value!r}")
+            if abs(value) > MAGNITUDE_LIMIT:  # finite but absurd (1e300): no tolerance, step or gain is that large
+                raise QPIKError(f"QPIKOptions.{f.name} must be within ±{MAGNITUDE_LIMIT:g}, got {value!r}")
         positive = ("position_tolerance", "angle_tolerance", "max_step", "influence_distance", "collision_gain",
                     "stall_step", "error_damping", "damping")
         for name in positive:
@@ -61,11 +67,10 @@ class QPIKOptions:
             raise QPIKError(f"QPIKOptions.collision_gain must be in (0, 1], got {self.collision_gain}")
         if self.influence_distance <= self.safety_margin:
             raise QPIKError("QPIKOptions.influence_distance must exceed safety_margin")
-        if int(self.progress_window) < 1 or not (0 < self.progress_ratio <= 1):
-            raise QPIKError(f"QPIKOptions.progress_window must be >= 1 and progress_ratio in (0, 1], got "
-                            f"{self.progress_window}, {self.progress_ratio}")
-        if int(self.max_iterations) < 1:
-            raise QPIKError(f"QPIKOptions.max_iterations must be >= 1, got {self.max_iterations}")
+        for name in ("max_iterations", "progress_window"):  # counts: an int, never a float truncated
+            integer(getattr(self, name), f"QPIKOptions.{name}", low=1, high=MAX_ITERATIONS, error=QPIKError)
+        if not (0 < self.progress_ratio <= 1):
+            raise QPIKError(f"QPIKOptions.progress_ratio must be in (0, 1], got {self.progress_ratio}")
 
 
 @dataclass(frozen=True)

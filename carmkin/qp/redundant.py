@@ -29,7 +29,7 @@ class Redundancy:
     free: tuple[str, ...] | None = None
 
     def __post_init__(self) -> None:
-        if self.prefer is not None and self.prefer not in ("table", "carm"):
+        if self.prefer is not None and (not isinstance(self.prefer, str) or self.prefer not in ("table", "carm")):
             raise QPIKError(f"prefer must be 'table', 'carm' or None, got {self.prefer!r}")
         if self.free is not None:
             if (isinstance(self.free, (str, bytes, dict)) or not hasattr(self.free, "__iter__")
@@ -55,7 +55,7 @@ def check_weights(weights, nv: int) -> np.ndarray:
         w = np.asarray(weights, dtype=float)
     except (TypeError, ValueError):
         raise QPIKError(f"joint_weights must be {nv} finite positive numbers, got {weights!r}") from None
-    if any(isinstance(v, (bool, np.bool_)) for v in np.ravel(np.asarray(weights, dtype=object))) or w.shape != (nv,) or not np.all(np.isfinite(w)) or np.any(w <= 0):
+    if any(isinstance(v, (bool, np.bool_, str, bytes)) for v in np.ravel(np.asarray(weights, dtype=object))) or w.shape != (nv,) or not np.all(np.isfinite(w)) or np.any(w <= 0):
         raise QPIKError(f"joint_weights must be {nv} finite positive numbers, got {weights!r}")
     return w
 

@@ -40,11 +40,12 @@ import numpy as np
 from carmkin.errors import CarmkinError, SimulationError, UnreachablePanoramaError
 from carmkin.seed import SEED_TABLE_3_1, SEED_TABLE_3_2
 
-from .error_model import ErrorModel
-from .repositioning import build_model, make_room, statistics
+from .error_model import ErrorModel, count, generator
+from .repositioning import build_model, check_room, make_room, statistics
 from .stitching import (
     _in_image,
     acquire,
+    check_overlap,
     outward_aims,
     phantom_frame,
     plane_in_panorama,
@@ -187,10 +188,11 @@ def table_3_1(system, model: ErrorModel = ErrorModel(), procedures: int = 2, see
               protocol: str = "chapter3") -> dict:
     """Table 3.1's rows: procedure -> ((mean, std, markers) without VDP, (...) with VDP), and overall."""
     protocol = _protocol(protocol)
-    rng = np.random.default_rng(seed)
+    procedures = count(procedures, "procedures")
+    rng = generator(seed)
     room = make_room(system, model, rng, guidance)
     runs, rows = [], {}
-    for k in range(int(procedures)):
+    for k in range(procedures):
         runs.append(overlap_errors(room, rng, protocol))
         rows[f"#{k + 1}"] = tuple((*statistics(e)[:2], e.size) for e in runs[-1])
     rows["overall"] = tuple((*statistics(np.concatenate([r[i] for r in runs]))[:2],
@@ -225,6 +227,8 @@ def metric_measurements(room, rng: np.random.Generator, overlap: float = 0.1, pr
     """One Table 3.2 procedure: method ("A", "B", "C") -> the four measured values (mm, degrees); A and B
     by ``protocol`` (:data:`PROTOCOLS`)."""
     protocol = _protocol(protocol)
+    check_room(room, rng)
+    overlap = check_overlap(overlap)
     system, model = room.system, room.model
     offset = METRIC_ABOVE_PATTERN + model.plane_distance * rng.normal()
 
@@ -297,7 +301,7 @@ def _panorama(system, images, points, rng, model, vdp):
 def table_3_2(system, model: ErrorModel = ErrorModel(), seed: int = 0, guidance=None, protocol: str = "chapter3") -> dict:
     """Table 3.2: method -> measured values (one procedure, as in the seed; A and B by ``protocol``)."""
     protocol = _protocol(protocol)
-    rng = np.random.default_rng(seed)
+    rng = generator(seed)
     return metric_measurements(make_room(system, model, rng, guidance), rng, protocol=protocol)
 
 

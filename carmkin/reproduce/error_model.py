@@ -36,6 +36,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from carmkin.errors import SimulationError
+from carmkin.validation import MAX_DISTANCE, integer, real_scalar
+
+#: Largest count (tasks, procedures, repeats, resamples, frames, calibration positions) a study accepts: a
+#: guard against a typo that would run for days (or a float such as 1e300 read as a count), not a bound of the
+#: seed's protocol.
+MAX_COUNT = 100_000
+#: Upper bounds of the error model's parameters by unit: px (a noise beyond the 800 px image is no camera),
+#: rad (a half turn), m (validation.MAX_DISTANCE), and the operator's relative stop error (ten times the move).
+PARAMETER_BOUNDS = {"px": 800.0, "rad": math.pi, "m": MAX_DISTANCE, "": 10.0}
 
 #: Where each parameter's value comes from (shown by ``carmkin reproduce --model`` and docs/fidelity.md).
 PROVENANCE = {
@@ -56,6 +65,13 @@ PROVENANCE = {
     "thresholds": "source: §4.6.2 'below 2 mm for translational joints and 0.5 deg for rotational joints'",
     "square pixels": "assumption: 230 mm wide detector on 800 x 600 px, square pixels (issue 21)",
 }
+
+
+#: The model's counts, and the unit of each other parameter (px, m or rad; none: a ratio).
+COUNTS = ("frames", "calibration_positions")
+UNITS = {"corner_noise_px": "px", "xray_noise_px": "px", "camera_xray_offset": "m", "operator_translation": "m",
+         "readout_translation": "m", "sag": "m", "plane_distance": "m", "camera_xray_rotation": "rad",
+         "mount_error": "rad", "operator_rotation": "rad", "readout_rotation": "rad"}
 
 
 @dataclass(frozen=True)
@@ -85,12 +101,12 @@ class ErrorModel:
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
-            value = getattr(self, f.name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-                raise SimulationError(f"ErrorModel.{f.name} must be a finite number >= 0, got {value!r}")
-        for name in ("frames", "calibration_positions"):
-            if int(getattr(self, name)) != getattr(self, name) or getattr(self, name) < 1:
-                raise SimulationError(f"ErrorModel.{name} must be an integer >= 1, got {getattr(self, name)!r}")
+            value, name = getattr(self, f.name), f"ErrorModel.{f.name}"
+            if f.name in COUNTS:
+                integer(value, name, low=1, high=MAX_COUNT, error=SimulationError)
+            else:
+                unit = UNITS.get(f.name, "")
+                real_scalar(value, name, low=0.0, high=PARAMETER_BOUNDS[unit], error=SimulationError, unit=unit)
 
     @classmethod
     def exact(cls, **changes) -> "ErrorModel":
@@ -137,16 +153,43 @@ class ErrorModel:
         rows = []
         for f in dataclasses.fields(self):
             value = getattr(self, f.name)
-            if f.name in ("camera_xray_offset", "operator_translation", "readout_translation", "sag", "plane_distance"):
+            if UNITS.get(f.name) == "m":
                 text = f"{value * 1e3:g} mm"
-            elif f.name in ("camera_xray_rotation", "mount_error", "operator_rotation", "readout_rotation"):
+            elif UNITS.get(f.name) == "rad":
                 text = f"{math.degrees(value):g} deg"
-            elif f.name.endswith("_px"):
+            elif UNITS.get(f.name) == "px":
                 text = f"{value:g} px"
             else:
                 text = f"{value:g}"
             rows.append((f.name, text, PROVENANCE[f.name]))
         return rows
+
+
+def count(value, name: str) -> int:
+    """``value`` as a count in [1, :data:`MAX_COUNT`] (an int: no bool, no float, no string), or
+    :class:`SimulationError` naming ``name``."""
+    return integer(value, name, low=1, high=MAX_COUNT, error=SimulationError)
+
+
+def generator(seed) -> np.random.Generator:
+    """``np.random.default_rng(seed)`` for a seed that is an integer >= 0, else :class:`SimulationError`
+    naming ``seed`` (numpy would take a string array or a list as entropy, or raise a bare TypeError)."""
+    return np.random.default_rng(integer(seed, "seed", low=0, error=SimulationError))
+
+
+def study_inputs(system, model, guidance=None, model_name: str = "model"):
+    """``(system, model, guidance)`` of a study, each checked: a :class:`carmkin.CArmSystem`, an
+    :class:`ErrorModel`, and None or a :class:`carmkin.reposition.guidance.GuidanceOptions`; else
+    :class:`SimulationError` naming the argument (the model's: ``model_name``)."""
+    from carmkin.model.system import require_system
+    from carmkin.reposition.guidance import GuidanceOptions
+    from carmkin.validation import instance
+
+    require_system(system, SimulationError)
+    instance(model, ErrorModel, model_name, error=SimulationError)
+    if guidance is not None:
+        instance(guidance, GuidanceOptions, "guidance", error=SimulationError)
+    return system, model, guidance
 
 
 def square_pixel_system(system):

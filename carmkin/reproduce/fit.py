@@ -27,7 +27,7 @@ from carmkin.errors import SimulationError
 from carmkin.seed import SEED_RESULTS
 from carmkin.validation import real_array
 
-from .error_model import ErrorModel
+from .error_model import PARAMETER_BOUNDS, ErrorModel, count, generator, study_inputs
 from .repositioning import run
 
 #: The six fitted statistics: (row of the summary, 0 = mean / 1 = std).
@@ -50,13 +50,36 @@ SEED_TASKS = 10
 #: The two readings of the seed's "average of rotational difference around the three axes": the mean
 #: absolute XYZ Euler angle (default) or the angle of the relative rotation.
 ROTATIONS = ("axes", "angle")
+#: Largest operator scale of a grid: the relative stop error (10 % per unit scale) stays within the error
+#: model's bound of ten times the move (:data:`~.error_model.PARAMETER_BOUNDS`).
+MAX_OPERATOR_SCALE = 100.0
+
+
+def _callable_with(fn, count: int) -> bool:
+    """Whether ``fn`` can be called with ``count`` positional arguments."""
+    import inspect
+
+    if not callable(fn):
+        return False
+    try:
+        inspect.signature(fn).bind(*range(count))
+    except TypeError:
+        return False
+    except ValueError:  # a builtin without a signature: trust it
+        return True
+    return True
+
+
+def _rotation(rotation) -> str:
+    if not isinstance(rotation, str) or rotation not in ROTATIONS:
+        raise SimulationError(f"rotation must be one of {ROTATIONS}, got {rotation!r}")
+    return rotation
 
 
 def task_values(tasks, rotation: str = "axes") -> list[tuple[np.ndarray, float, float]]:
     """Per successful task: (image errors px, translation mm, rotation deg) as the seed measured them, the
     rotation read as ``rotation`` (:data:`ROTATIONS`)."""
-    if rotation not in ROTATIONS:
-        raise SimulationError(f"rotation must be one of {ROTATIONS}, got {rotation!r}")
+    rotation = _rotation(rotation)
     return [(t.image_errors, 1e3 * t.translation, math.degrees(t.rotation if rotation == "axes" else t.rotation_angle))
             for t in tasks if t.success]
 
@@ -112,11 +135,11 @@ class Fit:
                 f"{('mean', 'std')[worst[1]]} of {worst[0]}")
 
 
-def _grid(values, name: str, unit: str) -> np.ndarray:
+def _grid(values, name: str, unit: str, high: float) -> np.ndarray:
     values = real_array(values, name, (None,), error=SimulationError, unit=unit)
-    if values.size == 0 or np.any(values < 0):
-        raise SimulationError(f"{name} must be a non-empty grid of values >= 0{f' ({unit})' if unit else ''}, "
-                              f"got {values.tolist()}")
+    if values.size == 0 or np.any(values < 0) or np.any(values > high):
+        raise SimulationError(f"{name} must be a non-empty grid of values in [0, {high:g}]"
+                              f"{f' ({unit})' if unit else ''}, got {values.tolist()}")
     return values
 
 
@@ -126,8 +149,14 @@ def fit(system, corner_noise=CORNER_NOISE_GRID, operator_scale=OPERATOR_SCALE_GR
     reading of the seed's rotational error (:data:`ROTATIONS`)."""
     from scipy.stats import chi2 as chi2_distribution
 
-    corner_noise = _grid(corner_noise, "corner_noise", "px")
-    operator_scale = _grid(operator_scale, "operator_scale", "")
+    study_inputs(system, base, model_name="base")
+    corner_noise = _grid(corner_noise, "corner_noise", "px", PARAMETER_BOUNDS["px"])
+    operator_scale = _grid(operator_scale, "operator_scale", "", MAX_OPERATOR_SCALE)
+    tasks, resamples = count(tasks, "tasks"), count(resamples, "resamples")
+    generator(seed)
+    _rotation(rotation)
+    if progress is not None and not _callable_with(progress, 2):
+        raise SimulationError(f"progress must be None or a function progress(i, n), got {progress!r:.60}")
     target = seed_vector()
     points, n = [], len(corner_noise) * len(operator_scale)
     for sc in corner_noise:
@@ -137,7 +166,7 @@ def fit(system, corner_noise=CORNER_NOISE_GRID, operator_scale=OPERATOR_SCALE_GR
             values = task_values(simulated, rotation)
             if len(values) < max(3, MIN_SUCCESS * len(simulated)):
                 continue  # too few repositioned tasks: the point is left out of the fit (printed blank)
-            stats = ten_task_statistics(values, np.random.default_rng(seed), resamples)
+            stats = ten_task_statistics(values, generator(seed), resamples)
             mean, spread = stats.mean(axis=0), stats.std(axis=0)
             z = (target - mean) / np.maximum(spread, 1e-12)
             points.append(GridPoint(float(sc), float(s), mean, spread, z, float(z @ z),

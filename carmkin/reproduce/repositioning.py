@@ -43,10 +43,12 @@ import numpy as np
 
 from carmkin.errors import CarmkinError, SimulationError
 from carmkin.seed import SEED_RESULTS
+from carmkin.validation import flag, instance
 
 from carmkin.reposition.experiment import statistics
 
-from .error_model import ErrorModel, square_pixel_system
+from .error_model import ErrorModel, generator, square_pixel_system, study_inputs
+from .error_model import count as _count
 from .measure import camera_reading, filtered_noise, pose_difference, xray_points
 
 #: Guidance updates before a task counts as failed.
@@ -97,6 +99,19 @@ class Room:
     config: object
 
 
+def _end(end) -> str:
+    if not isinstance(end, str) or end not in ENDS:
+        raise SimulationError(f"end must be one of {ENDS}, got {end!r:.60}")
+    return end
+
+
+def check_room(room, rng) -> None:
+    """:class:`SimulationError` naming the argument unless ``room`` is a :class:`Room` (:func:`make_room`) and
+    ``rng`` a numpy Generator (the public steps of one experiment take both)."""
+    instance(room, Room, "room", error=SimulationError, hint="make_room(...)")
+    instance(rng, np.random.Generator, "rng", error=SimulationError, hint="np.random.default_rng(seed)")
+
+
 def make_room(system, model: ErrorModel, rng: np.random.Generator, guidance=None, calibrate: bool = True) -> Room:
     """A room for ``system`` (made square-pixel) with the pattern mounted and calibrated (§3.3.3; with
     ``calibrate=False`` the guidance knows the true mount); ``guidance``:
@@ -105,6 +120,9 @@ def make_room(system, model: ErrorModel, rng: np.random.Generator, guidance=None
     from carmkin.reposition.world import World
     from carmkin.world import World as CollisionWorld
 
+    system, model, guidance = study_inputs(system, model, guidance)
+    instance(rng, np.random.Generator, "rng", error=SimulationError)
+    calibrate = flag(calibrate, "calibrate", error=SimulationError)
     system = square_pixel_system(system)
     noise = filtered_noise(model.corner_noise_px, model.frames)
     world = World.create(system, rng, mount_error=model.mount_error, corner_noise_px=noise)
@@ -191,6 +209,9 @@ def run_task(room: Room, rng: np.random.Generator, end: str = "guided") -> Task:
     from carmkin.reposition import experiment
     from carmkin.reposition.guidance import read_joints
 
+    check_room(room, rng)
+    _end(end)
+
     system, model = room.system, room.model
     q_ref = experiment.sample_reference(room.world, room.config, rng, room.scene)
     markers = experiment.xray_markers(room.world, q_ref, rng)
@@ -230,19 +251,17 @@ def run_task(room: Room, rng: np.random.Generator, end: str = "guided") -> Task:
 
 def repeat(one, system, model: ErrorModel, count: int, seed: int, guidance=None, what: str = "tasks") -> list:
     """``one(room, rng)`` ``count`` times in one room (numpy seed ``seed``; ``guidance`` as in :func:`make_room`)."""
-    if int(count) < 1:
-        raise SimulationError(f"{what} must be >= 1, got {count}")
-    rng = np.random.default_rng(seed)
+    count = _count(count, what)
+    rng = generator(seed)
     room = make_room(system, model, rng, guidance)
-    return [one(room, rng) for _ in range(int(count))]
+    return [one(room, rng) for _ in range(count)]
 
 
 def run(system, model: ErrorModel = ErrorModel(), tasks: int = 10, seed: int = 0, guidance=None,
         end: str = "guided") -> list[Task]:
     """``tasks`` §4.6.2 tasks in one room (numpy seed ``seed``; ``guidance`` as in :func:`make_room`;
     ``end``: :data:`ENDS`)."""
-    if not isinstance(end, str) or end not in ENDS:
-        raise SimulationError(f"end must be one of {ENDS}, got {end!r}")
+    _end(end)
     return repeat(lambda room, rng: run_task(room, rng, end), system, model, tasks, seed, guidance)
 
 

@@ -37,7 +37,7 @@ from carmkin.seed import SEED_TABLE_4_6
 
 from .error_model import ErrorModel
 from .measure import xray_points
-from .repositioning import build_model, guide, repeat, statistics
+from .repositioning import build_model, check_room, guide, repeat, statistics
 
 #: Phantom: 440 × 80 mm (source: §4.6.3); marker spacing along it and across (assumption).
 LENGTH, WIDTH, SPACING, ROWS = 0.44, 0.08, 0.02, 5
@@ -79,6 +79,18 @@ def reference_configuration(system, rng: np.random.Generator) -> np.ndarray:
         if name in system.joint_names:
             q[system.joint_names.index(name)] = value + rng.uniform(-1, 1) * REFERENCE_SPREAD[name]
     return np.clip(q, system.lower, system.upper)
+
+
+#: Largest overlap of neighbouring shots (fraction of the inner one's interval): at 1 a shot adds nothing and the
+#: panorama would never reach its length.
+MAX_OVERLAP = 0.9
+
+
+def check_overlap(overlap) -> float:
+    """``overlap`` as a fraction in [0, :data:`MAX_OVERLAP`], else :class:`SimulationError` naming it."""
+    from carmkin.validation import real_scalar
+
+    return real_scalar(overlap, "overlap", error=SimulationError, low=0.0, high=MAX_OVERLAP)
 
 
 def outward_aims(planner, direction, distance: float, half_length: float, overlap: float) -> list[float]:
@@ -213,9 +225,12 @@ def plane_in_panorama(room, reading, offset: float) -> tuple[np.ndarray, float]:
 
 
 def run_procedure(room, rng: np.random.Generator, overlap: float = 0.1) -> Procedure:
-    """One §4.6.3 procedure in ``room`` (see the module docstring)."""
+    """One §4.6.3 procedure in ``room`` (see the module docstring); ``overlap`` in [0, :data:`MAX_OVERLAP`]."""
     from carmkin.imaging import back_project, project
     from carmkin.reposition.pose import solve_pose
+
+    check_room(room, rng)
+    overlap = check_overlap(overlap)
 
     system, model = room.system, room.model
     measured_offset = PHANTOM_ABOVE_PATTERN + model.plane_distance * rng.normal()

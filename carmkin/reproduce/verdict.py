@@ -36,7 +36,9 @@ import numpy as np
 
 from carmkin.errors import SimulationError
 
-from .error_model import ErrorModel
+from carmkin.validation import real_array, real_scalar
+
+from .error_model import ErrorModel, count, study_inputs
 
 #: The false-rejection rate of every row's test (a value the model does explain is called not reproduced
 #: with at most this probability).
@@ -72,7 +74,23 @@ class Row:
 
 
 def _finite(values) -> np.ndarray:
-    return np.asarray([v for v in values if v is not None and np.isfinite(v)], dtype=float)
+    """The values of the repeats that succeeded: ``values`` one real number per repeat, None or NaN for a failed
+    one (left out); anything else (a string, a dict, a 2-d array, ±inf) is :class:`SimulationError`."""
+    if not isinstance(values, (list, tuple, np.ndarray)) or np.ndim(values) == 0:
+        raise SimulationError(f"values must be a list of numbers, one per repeat (None: failed), got "
+                              f"{type(values).__name__}")
+    array = real_array([math.nan if v is None else v for v in values], "values", (None,), error=SimulationError,
+                       finite=False)
+    if np.any(np.isinf(array)):
+        raise SimulationError(f"values must be finite numbers or None (a failed repeat), got {array.tolist()!r:.80}")
+    return array[np.isfinite(array)]
+
+
+def _row_inputs(seed, kind: str) -> float:
+    """``seed`` (the seed's number) as a finite real, and ``kind`` one of :data:`KINDS`; else SimulationError."""
+    if not isinstance(kind, str) or kind not in KINDS:
+        raise SimulationError(f"kind must be one of {', '.join(KINDS)}, got {kind!r:.60}")
+    return real_scalar(seed, "seed", error=SimulationError)
 
 
 def _repeats(one, repeats: int) -> list:
@@ -80,7 +98,7 @@ def _repeats(one, repeats: int) -> list:
     the camera lost the pattern, no first configuration allowed the panorama) is ``None``: its values are
     left out, and each row's criterion states how many repeats it has."""
     out = []
-    for seed in range(int(repeats)):
+    for seed in range(count(repeats, "repeats")):
         try:
             out.append(one(seed))
         except SimulationError:
@@ -102,7 +120,7 @@ def t_critical(n: int, alpha: float = ALPHA) -> float:
 
 def judge(experiment: str, quantity: str, seed: float, values, kind: str = "predicted", why: str = "") -> Row:
     """A :class:`Row` by the prediction t-test of the module docstring."""
-    values = _finite(values)
+    seed, values = _row_inputs(seed, kind), _finite(values)
     if values.size == 0:
         return Row(experiment, quantity, seed, math.nan, math.nan, math.nan, math.nan, "undetermined", kind,
                    "no repeat succeeded", why)
@@ -135,7 +153,10 @@ def judge_tolerance(experiment: str, quantity: str, seed: float, actual: float, 
                     why: str = "") -> Row:
     """A :class:`Row` testing the simulated relative errors ``|value − actual| / actual`` against the seed's
     stated tolerance :data:`TABLE_3_2_TOLERANCE` (module docstring)."""
-    values = _finite(values)
+    seed, values = _row_inputs(seed, kind), _finite(values)
+    actual = real_scalar(actual, "actual", error=SimulationError)
+    if actual == 0:
+        raise SimulationError("actual must be non-zero (errors are relative to it), got 0")
     if values.size == 0:
         return Row(experiment, quantity, seed, math.nan, math.nan, math.nan, math.nan, "undetermined", kind,
                    "no repeat succeeded", why)
@@ -248,7 +269,15 @@ EXPERIMENTS = {"4.6.2": rows_4_6_2, "4.6.3": rows_4_6_3, "3.1": rows_3_1, "3.2":
 
 
 def verdict(system, model: ErrorModel, repeats: int = 8, experiments=tuple(EXPERIMENTS)) -> list[Row]:
-    """Every seed number of ``experiments`` under ``model`` (see the module docstring)."""
+    """Every seed number of ``experiments`` (names of :data:`EXPERIMENTS`, or one name) under ``model`` (see the
+    module docstring); ``repeats`` >= 2 (the prediction test needs a spread)."""
+    study_inputs(system, model)
+    if count(repeats, "repeats") < 2:
+        raise SimulationError(f"repeats must be >= 2 (the prediction t-test needs a spread), got {repeats}")
+    experiments = (experiments,) if isinstance(experiments, str) else experiments
+    if not isinstance(experiments, (list, tuple)) or not experiments or not all(
+            isinstance(name, str) and name in EXPERIMENTS for name in experiments):
+        raise SimulationError(f"experiments must be names of {', '.join(EXPERIMENTS)}, got {experiments!r:.80}")
     return [row for name in experiments for row in EXPERIMENTS[name](system, model, repeats)]
 
 

@@ -44,8 +44,11 @@ def feasible(sweep, geometry_only: bool = False):
     assumed geometry whatever the machine can do (a reconstruction study's ideal circle), never a plan to run."""
     from .plan import Sweep
 
+    from carmkin.validation import flag
+
     if not isinstance(sweep, Sweep):
         raise SweepError(f"sweep must be a carmkin.sweeps.Sweep (plan_sweep(...)), got {type(sweep).__name__}")
+    geometry_only = flag(geometry_only, "geometry_only", error=SweepError)
     if not sweep.success and not geometry_only:
         raise SweepError(f"sweep: a failed sweep is not exported ({sweep.failure}); sweep.cut() plans its largest "
                          "feasible arc")
@@ -101,7 +104,10 @@ def tigre_geometry(sweep, volume_centre=None, scale: float = MM) -> dict:
     the sweep's target); image axes are the table axes. Our image = TIGRE's with its rows flipped."""
     scale = _scale(scale)
     s, R, f, (sx, sy), (u0, v0), (cols, rows) = _frames(sweep)
-    c = sweep.target if volume_centre is None else np.asarray(volume_centre, dtype=float).reshape(3)
+    from carmkin.validation import real_array
+
+    c = sweep.target if volume_centre is None else real_array(volume_centre, "volume_centre", (3,), error=SweepError,
+                                                               unit="m")
     z = R[:, :, 2]
     dso = np.einsum("ni,ni->n", c[None] - s, z)  # the rotation centre: the centre's foot on the principal axis
     if np.any(dso <= 0):
@@ -156,10 +162,10 @@ RTK_LAYOUTS = ("image", "rotation")
 def rtk_detector_axes(sweep, layout: str = "image", geometry_only: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Unit vectors (u, v) of the RTK detector axes in our source frame for ``layout`` (:data:`RTK_LAYOUTS`)."""
     sweep = feasible(sweep, geometry_only)
+    if not isinstance(layout, str) or layout not in RTK_LAYOUTS:
+        raise SweepError(f"layout must be one of {', '.join(RTK_LAYOUTS)}, got {layout!r:.60}")
     if layout == "image":
         return np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
-    if layout != "rotation":
-        raise SweepError(f"layout must be one of {', '.join(RTK_LAYOUTS)}, got {layout!r}")
     from .trajectory import rotation_axis
 
     mid = sweep.n_views // 2

@@ -12,7 +12,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from carmkin.errors import SweepError
-from carmkin.validation import real_array, real_scalar, target_point
+from carmkin.model.system import require_system
+from carmkin.validation import flag, real_array, real_scalar, target_point
 
 from carmkin.world import DEFAULT_MARGIN, DEFAULT_TOLERANCE, World
 from carmkin.world.obstacles import as_obstacles
@@ -183,8 +184,13 @@ def _clearance_line(sweep: Sweep) -> str:
             f"{sweep.margin * 1e3:.1f} mm; {sweep.clearance_samples} distance samples)")
 
 
-def _patient(patient) -> tuple:
-    return as_obstacles(patient, SweepError)
+def _patient(patient, system) -> tuple:
+    """The patient's obstacles; a patient model must rest on the table top (``check_placement``)."""
+    obstacles = as_obstacles(patient, SweepError)
+    check_placement = getattr(patient, "check_placement", None)
+    if callable(check_placement):
+        check_placement(system)
+    return obstacles
 
 
 def _reference(system, w: np.ndarray, q_start, target, distance):
@@ -265,7 +271,9 @@ def plan_sweep(system, target, arc_deg: float = 190.0, n_views: int = 100, patie
     swept clearance may be, m). An arc that does not fit is not an exception: ``success`` is False and
     ``failure`` names the joint limit, contact or unreachable pose, where, and the largest feasible arc.
     """
+    require_system(system, SweepError)
     target = target_point(target, "target", error=SweepError)
+    compensate = flag(compensate, "compensate", error=SweepError)
     arc = math.radians(real_scalar(arc_deg, "arc_deg", error=SweepError, low=1e-6, high=360.0, unit="deg"))
     if isinstance(n_views, bool) or not isinstance(n_views, (int, np.integer)) or not 2 <= n_views <= MAX_VIEWS:
         raise SweepError(f"n_views must be an integer in [2, {MAX_VIEWS}], got {n_views!r}")
@@ -273,7 +281,7 @@ def plan_sweep(system, target, arc_deg: float = 190.0, n_views: int = 100, patie
     tolerance = real_scalar(tolerance, "tolerance", error=SweepError, low=1e-6, high=0.1, unit="m")
     distance = system.carm.source_to_orbital_axis if distance is None else real_scalar(
         distance, "distance", error=SweepError, low=1e-3, high=10.0, unit="m")
-    obstacles = _patient(patient)
+    obstacles = _patient(patient, system)
     w = tr.joint_weights(system, joint)
     q_ref, centred = _reference(system, w, q_start, target, distance)
     phi = tr.frame_angles(arc, int(n_views), centred)

@@ -23,10 +23,13 @@ from typing import Mapping
 import numpy as np
 
 from carmkin.errors import SweepError
+from carmkin.validation import real_scalar
 
 #: Convergence (m, rad) of frames no closed form solves (the closed forms are exact): the target stays on the
 #: principal axis to 1e-9 m on every system.
 QP_TOLERANCE = 1e-10
+#: Largest |weight| (rad of the joint per rad of φ) of a joint in a combined sweep.
+MAX_WEIGHT = 10.0
 #: Default sweep joint (the Siremobile Iso-C 3D acquires by orbital rotation, the preset's ±95°).
 DEFAULT_JOINT = "orbital"
 
@@ -39,13 +42,14 @@ def joint_weights(system, joint) -> np.ndarray:
         raise SweepError(f"joint must be a joint name or a mapping of joint names to weights, got {joint!r}")
     w = np.zeros(system.nq)
     for name, weight in spec.items():
-        if name not in system.joint_names:
+        if not isinstance(name, str) or name not in system.joint_names:
             raise SweepError(f"joint {name!r} is not a joint of this system; joints: {', '.join(system.joint_names)}")
         k = system.joint_names.index(name)
         if system.prismatic[k]:
             raise SweepError(f"joint {name!r} is prismatic: a sweep turns revolute joints (e.g. orbital, angular)")
-        value = float(weight) if not isinstance(weight, bool) else math.nan
-        if not math.isfinite(value) or value == 0.0 or abs(value) > 10.0:
+        value = real_scalar(weight, f"weight of joint {name!r}", error=SweepError, low=-MAX_WEIGHT, high=MAX_WEIGHT,
+                            unit="rad/rad")
+        if value == 0.0:
             raise SweepError(f"weight of joint {name!r} must be a non-zero number in [-10, 10] (rad/rad), got {weight!r}")
         w[k] = value
     return w

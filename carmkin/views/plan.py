@@ -101,6 +101,9 @@ def world_for(system, patient):
     from carmkin.robot.validity import require_system
 
     require_system(system, ViewError)
+    check_placement = getattr(patient, "check_placement", None)
+    if callable(check_placement):  # a patient model rests on the table top
+        check_placement(system)
     if dataclasses.is_dataclass(patient) and patient.__dataclass_params__.frozen:
         try:
             return _world_cached(_model_key(system, patient))

@@ -64,6 +64,9 @@ class World:
     def __init__(self, system, patient=None) -> None:
         require_system(system, CollisionSceneError)
         obstacles = as_obstacles(patient, PatientModelError)
+        check_placement = getattr(patient, "check_placement", None)
+        if callable(check_placement):  # a patient model rests on the table top (ParametricPatient)
+            check_placement(system)
         self._system = system
         model, geometry_model, _ = system.pinocchio()
         self.model = model

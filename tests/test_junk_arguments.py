@@ -1,0 +1,127 @@
+"""Issue 31: each class of junk argument the fuzz (tests/fuzz_entries_junk.py) found escaping untyped or
+accepted, now a typed error naming the argument. One parametrized case per class, with the value that escaped."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import carmkin
+from carmkin.errors import PatientModelError, QPIKError, SimulationError, SingularityError, SweepError
+from carmkin.patient import ParametricPatient
+from carmkin.qp_ik import QPIKOptions
+from carmkin.reproduce import chapter3, fit, repositioning, stitching, verdict
+from carmkin.reproduce.error_model import ErrorModel
+from carmkin.sweeps import export, plan_sweep
+
+PRESET = carmkin.load_preset("siremobile-iso-c3d")
+MOTORIZED = carmkin.load_preset("siremobile-iso-c3d-motorized-table")
+
+
+def _room():
+    return repositioning.make_room(PRESET, ErrorModel(), np.random.default_rng(0))
+
+
+def _sweep(arc):
+    return plan_sweep(PRESET, np.zeros(3), arc, 6)
+
+
+CASES = [
+    # reproduce: counts given as bools, strings, floats (truncated before), 0-d string arrays, huge
+    ("tasks", SimulationError, lambda: repositioning.run(PRESET, tasks=True)),
+    ("tasks", SimulationError, lambda: repositioning.run(PRESET, tasks=2.5)),
+    ("tasks", SimulationError, lambda: repositioning.run(PRESET, tasks=np.array("2"))),
+    ("tasks", SimulationError, lambda: repositioning.run(PRESET, tasks=10 ** 30)),
+    ("procedures", SimulationError, lambda: stitching.run(PRESET, procedures="1")),
+    ("procedures", SimulationError, lambda: chapter3.table_3_1(PRESET, procedures=float("nan"))),
+    ("seed", SimulationError, lambda: repositioning.run(PRESET, tasks=1, seed=np.array(["1"]))),
+    ("seed", SimulationError, lambda: chapter3.table_3_2(PRESET, seed=2.0)),
+    ("system", SimulationError, lambda: repositioning.run(None, tasks=1)),
+    ("model", SimulationError, lambda: stitching.run(PRESET, model="default")),
+    ("guidance", SimulationError, lambda: chapter3.table_3_2(PRESET, guidance=True)),
+    ("resamples", SimulationError, lambda: fit.fit(PRESET, [0.0], [0.0], tasks=3, resamples=-1)),
+    ("base", SimulationError, lambda: fit.fit(PRESET, [0.0], [0.0], tasks=3, base=None)),
+    ("progress", SimulationError, lambda: fit.fit(PRESET, [0.0], [0.0], tasks=3, progress=lambda: None)),
+    ("corner_noise", SimulationError, lambda: fit.fit(PRESET, [1e300], [0.0], tasks=3)),
+    ("repeats", SimulationError, lambda: verdict.verdict(PRESET, ErrorModel(), repeats="2")),
+    ("repeats", SimulationError, lambda: verdict.verdict(PRESET, ErrorModel(), repeats=1)),
+    ("experiments", SimulationError, lambda: verdict.verdict(PRESET, ErrorModel(), 2, experiments=["nope"])),
+    ("seed", SimulationError, lambda: verdict.judge("x", "y", float("inf"), [1.0, 2.0])),
+    ("kind", SimulationError, lambda: verdict.judge("x", "y", 1.0, [1.0, 2.0], kind="guessed")),
+    ("values", SimulationError, lambda: verdict.judge("x", "y", 1.0, np.array("1.0"))),
+    ("values", SimulationError, lambda: verdict.judge("x", "y", 1.0, {"a": 1.0})),
+    ("ErrorModel.corner_noise_px", SimulationError, lambda: ErrorModel(corner_noise_px=1e300)),
+    ("ErrorModel.frames", SimulationError, lambda: ErrorModel(frames=2.0)),
+    # sweeps and their exports
+    ("system", SweepError, lambda: plan_sweep(None, np.zeros(3))),
+    ("compensate", SweepError, lambda: plan_sweep(
+        PRESET, np.zeros(3), 30.0, 4, compensate="False")),
+    ("weight of joint", SweepError, lambda: plan_sweep(
+        PRESET, np.zeros(3), 30.0, 4, joint={"orbital": "1"})),
+    ("weight of joint", SweepError, lambda: plan_sweep(
+        PRESET, np.zeros(3), 30.0, 4, joint={"orbital": 1j})),
+    ("geometry_only", SweepError, lambda: export.rtk_frames(
+        _sweep(190.0), geometry_only="no")),
+    ("volume_centre", SweepError, lambda: export.tigre_geometry(
+        _sweep(190.0), volume_centre=b"1")),
+    ("layout", SweepError, lambda: export.rtk_frames(_sweep(190.0), layout=np.array(["image", 1], dtype=object))),
+    # the patient
+    ("mass", PatientModelError, lambda: ParametricPatient(height=0.4, mass=650.0)),
+    ("system", PatientModelError, lambda: ParametricPatient.on_table(None)),
+    ("chest_z", PatientModelError, lambda: ParametricPatient.on_table(PRESET, chest_z=5.0)),
+    ("lateral_x", PatientModelError, lambda: ParametricPatient.on_table(PRESET, lateral_x=-3.0)),
+    ("patient", PatientModelError, lambda: carmkin.world.World(PRESET, ParametricPatient())),  # floating
+    ("patient", PatientModelError, lambda: plan_sweep(PRESET, np.zeros(3), 30.0, 3, ParametricPatient())),
+    # the QP
+    ("QPIKOptions.progress_window", QPIKError, lambda: QPIKOptions(progress_window=2.5)),
+    ("QPIKOptions.max_iterations", QPIKError, lambda: QPIKOptions(max_iterations=float("inf"))),
+    ("QPIKOptions.damping", QPIKError, lambda: QPIKOptions(damping=1e300)),
+    ("weights", QPIKError, lambda: carmkin.qp_ik.solve(MOTORIZED, MOTORIZED.fk(0.5 * (MOTORIZED.lower + MOTORIZED.upper)),
+                                                       weights=np.full(MOTORIZED.nq, "1"))),
+    ("prefer", QPIKError, lambda: carmkin.qp_ik.solve(PRESET, PRESET.fk(np.zeros(6)),
+                                                      prefer=np.array(["x", 1], dtype=object))),
+    # one experiment's public steps
+    ("rng", SimulationError, lambda: repositioning.make_room(PRESET, ErrorModel(), 3)),
+    ("calibrate", SimulationError, lambda: repositioning.make_room(PRESET, ErrorModel(), np.random.default_rng(0),
+                                                                   calibrate="no")),
+    ("room", SimulationError, lambda: stitching.run_procedure({}, np.random.default_rng(0))),
+    ("end", SimulationError, lambda: repositioning.run_task(_room(), np.random.default_rng(0), end=True)),
+    ("overlap", SimulationError, lambda: stitching.run_procedure(_room(), np.random.default_rng(0), overlap=[])),
+    ("overlap", SimulationError, lambda: chapter3.metric_measurements(_room(), np.random.default_rng(0), overlap=1.5)),
+    ("arms", PatientModelError, lambda: ParametricPatient(arms=np.array(["side", 1], dtype=object))),
+    ("prefix", PatientModelError, lambda: ParametricPatient.on_table(PRESET).obstacles(prefix=None)),
+    # presets: every error of a text names its source
+    ("mine.toml", carmkin.errors.PresetError, lambda: carmkin.presets.parse_preset("", "mine.toml")),
+    # singularity
+    ("reference_frame", SingularityError, lambda: carmkin.singularity.jacobian(PRESET, np.zeros(6), "world")),
+    ("length", SingularityError, lambda: carmkin.singularity.measure_map(PRESET, np.zeros(6), (0, 5), 3,
+                                                                         length=np.array("1"))),
+    ("pair", SingularityError, lambda: carmkin.singularity.measure_map(PRESET, np.zeros(6), np.array("ab"), 3)),
+    ("pair", SingularityError, lambda: carmkin.singularity.singular_curves(PRESET, [None, 1], np.zeros(6))),
+]
+
+
+@pytest.mark.parametrize("name, error, call", CASES, ids=[f"{i}-{c[0]}" for i, c in enumerate(CASES)])
+def test_junk_is_a_typed_error_naming_the_argument(name, error, call):
+    with pytest.raises(error) as info:
+        call()
+    assert name in str(info.value)
+
+
+def test_the_placements_that_rest_on_the_table_are_accepted():
+    for system in (PRESET, MOTORIZED):
+        patient = ParametricPatient.on_table(system, chest_z=0.3)
+        assert len(carmkin.world.World(system, patient).obstacles) == len(patient.obstacles())
+
+
+def test_failed_sweep_exports_are_refused_and_write_no_file(tmp_path):
+    sweep = _sweep(360.0)
+    assert not sweep.success
+    path = tmp_path / "g.xml"
+    for fn in (export.astra_vectors, export.tigre_geometry, export.positioner_angles, export.rtk_frames):
+        with pytest.raises(SweepError, match="failed sweep"):
+            fn(sweep)
+    with pytest.raises(SweepError, match="failed sweep"):
+        export.write_rtk_xml(sweep, path)
+    assert not path.exists()
+    assert export.rtk_frames(sweep, geometry_only=True)[0].shape == (sweep.n_views, 3)
