@@ -11,6 +11,15 @@ For N cells (target, beam direction, distance range) at once:
 3. per cell, the candidates in that order checked exactly (:meth:`carmkin.world.World.nearest`) until one keeps the
    margin; the first that does is the answer, with its exact clearance. A candidate inside a certified
    contact region of an earlier one (:mod:`carmkin.views.regions`) touches and is not checked.
+4. per cell that every candidate left in contact, with its best exact clearance within
+   :data:`carmkin.views.polish.WINDOW` of the margin: an ascent of the exact clearance between the samples
+   (continuous wigwag, the distance anywhere in its family's exact interval) from its best candidates
+   (:mod:`carmkin.views.polish`); a point that keeps the margin is the answer.
+
+The sampled passes alone missed valid configurations between their samples (issue 31: 2 of 153 views called
+unreachable); with step 4 a brute force that shares none of this code (``tests/views/bruteforce.py``, run by
+``python benchmarks/bruteforce_views.py``) finds none on the views it calls unreachable — a check, not a
+proof (docs/views.md has the numbers).
 
 Most cells are answered by their first candidate, so it is found and checked for every cell first (the
 best-scored distances alone), and only the cells it leaves open get the rest of their candidates. The
@@ -88,7 +97,7 @@ class Outcome:
     distance: np.ndarray
     reason: np.ndarray
     binding: np.ndarray
-    rank: np.ndarray  # (N,) position of the answer in its cell's search order (-1: unreachable)
+    rank: np.ndarray  # (N,) position of the answer in its cell's search order (-1: unreachable; MAX_EXACT_CHECKS: the polish's)
 
 
 def _lambda_at(fam, idx, s):

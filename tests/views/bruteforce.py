@@ -30,6 +30,9 @@ DISTANCE_STEP = 0.002
 #: Roll step (deg) of the first pass that finds the rolls with in-range solutions (the grid is fine within
 #: 1.5 of these steps of them; all rolls where the first pass finds none).
 COARSE_ROLL_DEG = 1.0
+#: Where that pass finds none, every roll of the grid is tried at this distance step (m) before the view is
+#: taken to have no in-range solution but on the singular family.
+COARSE_DISTANCE = 0.01
 #: Grid points (best exact clearance first, at least this far apart in roll) each maximised locally.
 SEEDS = 6
 #: Grid solutions whose exact clearance ranks the seeds, at most (evenly strided).
@@ -112,11 +115,12 @@ def _solve(system6, expand, target, direction, s, rho, theta2=None):
     else:
         regular = ~on_family
         keep(analytic_ik.solve_batch(system6, T[regular]), s[regular], rho[regular], np.nan)
-        ps, pr = s[on_family], rho[on_family]
-        for value in theta2:
-            q_current = np.zeros(6)
-            q_current[2] = value
-            keep(analytic_ik.solve_batch(system6, T[on_family], q_current), ps, pr, value)
+        count = int(on_family.sum())
+        ps, pr = np.tile(s[on_family], len(theta2)), np.tile(rho[on_family], len(theta2))
+        q_current = np.zeros((count * len(theta2), 6))
+        q_current[:, 2] = np.repeat(theta2, count)
+        keep(analytic_ik.solve_batch(system6, np.tile(T[on_family], (len(theta2), 1, 1)), q_current), ps, pr,
+             q_current[:, 2])
     return np.concatenate(qs), np.concatenate(wheres)
 
 
@@ -143,7 +147,12 @@ def brute(system, world, target, direction, margin, roll_step_deg=ROLL_STEP_DEG,
     S, R = np.meshgrid(s_values, coarse, indexing="ij")
     _, found = _solve(system6, expand, target, direction, S.ravel(), R.ravel())
     fine = np.radians(np.arange(0.0, 360.0, roll_step_deg))
-    if len(found):
+    if not len(found):  # every roll, with a coarser distance step: a set narrow in both is not looked for
+        S, R = np.meshgrid(np.linspace(0.0, sid, int(np.ceil(sid / COARSE_DISTANCE)) + 1), fine, indexing="ij")
+        _, found = _solve(system6, expand, target, direction, S.ravel(), R.ravel())
+    if not len(found):
+        fine = fine[:0]
+    else:
         gap = np.abs((fine[:, None] - np.unique(found[:, 1])[None] + np.pi) % (2 * np.pi) - np.pi)
         fine = fine[gap.min(axis=1) <= np.radians(1.5 * COARSE_ROLL_DEG)]
     fine = np.r_[fine, family_rolls(system, direction)]
