@@ -54,7 +54,6 @@ def test_the_views_missed_between_samples_are_reachable(preset, target, primary,
     assert plan.success and plan.clearance >= MARGIN
 
 
-@pytest.mark.slow
 def test_the_oracle_finds_reachable_views_feasible():
     """The oracle can say "feasible": on reachable cells (one on the singular family, primary −90°) it finds a
     configuration that keeps the margin, confirmed by validity.check."""
