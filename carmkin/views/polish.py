@@ -43,9 +43,10 @@ STEP_U = 1.0 / 16.0
 #: The ascent of a seed stops when its steps are below these (rad, fraction of the interval).
 MIN_STEP_THETA2 = math.radians(0.02)
 MIN_STEP_U = 1.0 / 256.0
-#: A seed whose clearance is further below the margin than its remaining steps can move the machine
-#: (``2 (LEVER·Δθ2 + Δs)``: θ2 turns the source and detector about the wigwag axis, within this (m) of
-#: it on the presets, and s moves them along the beam) is dropped.
+#: A seed whose clearance is further below the margin than its remaining steps can plausibly move the machine,
+#: ``2 (LEVER·Δθ2 + Δs)`` (the steps halve, so the rest of an ascent sums to less than twice the current
+#: ones; θ2 swings the C-arc about the wigwag axis with about this lever (m) on the presets, s moves it along
+#: the beam), is dropped. A stopping rule for the ascent, not a bound on the clearance.
 LEVER = 1.5
 #: Steps of the ascent, at most.
 MAX_STEPS = 40
