@@ -1,9 +1,10 @@
 """Views the search calls unreachable, checked by brute force (issue 31): is any of them feasible?
 
-For 5° reach maps (primary −90…90°, secondary −45…45°) of the Iso-C 3D with ``ParametricPatient.on_table`` at
-two targets and of the motorized preset (table held at mid-range, as ``reach_map`` holds it), every cell ``reach_map`` calls unreachable is
-given to the oracle of ``tests/views/bruteforce.py`` (the pose IK over a fine (distance, roll) grid, the
-singular family over its wigwag, then a local maximisation of the clearance; none of the search's code).
+For 5° reach maps (primary −90…90°, secondary −45…45°) of the Iso-C 3D with ``ParametricPatient.on_table``
+at two targets and of the motorized preset (table held at mid-range, as ``reach_map`` holds it), every cell
+``reach_map`` calls unreachable is given to the oracle of ``tests/views/bruteforce.py`` (the pose IK over a
+fine (distance, roll) grid, the singular family over its wigwag, then a local maximisation of the clearance;
+none of the search's code).
 A view it finds feasible is a miss of the search; the oracle's configuration is confirmed by
 ``carmkin.robot.validity.check`` at the margin (``reachable``: joints in range and no pair closer than the
 margin; the views do not ask for the table in the X-ray cone).
@@ -70,8 +71,9 @@ def main(argv=None) -> int:
         for i, j in zip(*np.nonzero(m.reachable & ~sampled.reachable)):
             report = check(system, m.q[i, j], patient.obstacles(), margin=margin)
             rescued += 1
-            print(f"sampled search missed {preset} target {target} view ({m.primary_deg[i]:g}°, {m.secondary_deg[j]:g}°): "
-                  f"the polish reaches it at {m.clearance[i, j] * 1e3:.2f} mm, validity.check "
+            print(f"sampled search missed {preset} target {target} view "
+                  f"({m.primary_deg[i]:g}°, {m.secondary_deg[j]:g}°): the polish reaches it at "
+                  f"{m.clearance[i, j] * 1e3:.2f} mm, validity.check "
                   f"{'agrees' if report.reachable else 'DISAGREES'}", flush=True)
         cells = list(zip(*np.nonzero(~m.reachable)))
         found = 0
@@ -83,8 +85,8 @@ def main(argv=None) -> int:
                 misses.append((preset, target, m.primary_deg[i], m.secondary_deg[j]))
                 print(f"MISS {preset} target {target} view ({m.primary_deg[i]:g}°, {m.secondary_deg[j]:g}°) "
                       f"({m.binding[i, j]}): clearance {verdict.clearance * 1e3:.2f} mm, validity.check "
-                      f"{'agrees' if report.reachable else 'DISAGREES'}; q = {np.array2string(verdict.q, precision=17, max_line_width=400)}",
-                      flush=True)
+                      f"{'agrees' if report.reachable else 'DISAGREES'}; "
+                      f"q = {np.array2string(verdict.q, precision=17, max_line_width=400)}", flush=True)
         total += len(cells)
         print(f"{preset} target {target}: {len(cells)} of {m.reachable.size} cells unreachable, {found} feasible",
               flush=True)

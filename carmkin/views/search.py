@@ -97,7 +97,7 @@ class Outcome:
     distance: np.ndarray
     reason: np.ndarray
     binding: np.ndarray
-    rank: np.ndarray  # (N,) position of the answer in its cell's search order (-1: unreachable; MAX_EXACT_CHECKS: the polish's)
+    rank: np.ndarray  # (N,) the answer's place in its cell's search order (-1: unreachable; MAX_EXACT_CHECKS: polished)
 
 
 def _lambda_at(fam, idx, s):
@@ -127,7 +127,8 @@ def _candidates(ctx: Context, chunk, kinds):
         has = inside.any(axis=1)
         s_star = np.where(has, s_grid[n, best], 0.5 * (s_lo + s_hi))
         # The roll about the beam, the same for every distance of a family.
-        x = closed_form.source_x_axes(fam.theta[idx][:, 0], fam.theta[idx][:, 1], closed_form.base_frame(system, hold))
+        frame = closed_form.base_frame(system, hold)
+        x = closed_form.source_x_axes(fam.theta[idx][:, 0], fam.theta[idx][:, 1], frame)
         roll = np.arctan2(np.einsum("ij,ij->i", x, e2[n]), np.einsum("ij,ij->i", x, e1[n]))
         for kind in kinds:
             # Distance choices per family: the best-scored one and points spread over its interval (the
@@ -375,8 +376,8 @@ def _polish(ctx: Context, state: _State, targets, directions, distance_range, x_
         return
     cells, distances, q = cells[rows], distances[rows], q[rows]
     fixed = np.all(np.isfinite(x_axes[cells]), axis=1)
-    found, q_new, clearance = polish.polish(ctx, cells, targets[cells], directions[cells], distance_range[cells], fixed,
-                                            q, distances)
+    found, q_new, clearance = polish.polish(ctx, cells, targets[cells], directions[cells], distance_range[cells],
+                                            fixed, q, distances)
     for k in np.flatnonzero(found).tolist():
         cell = int(cells[k])
         if not state.reachable[cell] or clearance[k] > state.clearance[cell]:
