@@ -10,7 +10,8 @@ per-view QP loop they replace.
 2. ``plan_view`` median over random views of the same grid.
 3. The QP after the closed form on the motorized preset (the cells of a 10° map the held table leaves
    unreachable).
-4. No slowdown from the one collision world (issue 27): ``reach_map`` (one process) and ``plan_view`` timed in
+4. The polish between the samples (issue 31): reach_map with and without it, alternated in the same run.
+5. No slowdown from the one collision world (issue 27): ``reach_map`` (one process) and ``plan_view`` timed in
    fresh interpreters on today's code and on the code before the world (:data:`BASELINE_REV`), same grid, same
    patient, same margin (20 mm, the views' default then), in the same run; the reachable cells must agree.
 
@@ -34,9 +35,9 @@ from carmkin.views.maps import default_workers
 
 from _timing import row
 
-#: The last commit before the one collision world (issue 27): the "previous code" of section 4.
+#: The last commit before the one collision world (issue 27): the "previous code" of section 5.
 BASELINE_REV = "dd205b7"
-#: Section 4's measurement, run in a fresh interpreter on either code: reach_map (one process) and plan_view
+#: Section 5's measurement, run in a fresh interpreter on either code: reach_map (one process) and plan_view
 #: median, at the views' former default margin of 20 mm on both.
 TIMING_CODE = """
 import json, statistics, time
@@ -119,12 +120,37 @@ def main() -> None:
         plan_view(system, view, patient, nearest=False)
         times.append(time.perf_counter() - start)
     print(row("plan_view median (no nearest-view search)", statistics.median(times), unit="ms"))
+    polish_cost(system, patient, target, primary, secondary)
     qp_after_closed_form(target)
     against_previous_code(step)
 
 
+def polish_cost(system, patient, target, primary, secondary, repeats: int = 5) -> None:
+    """The polish between the samples (issue 31, :mod:`carmkin.views.polish`): reach_map (one process) with it
+    and without it (``WINDOW`` < 0: the sampled search alone), alternated in the same run, best of
+    ``repeats``; the cells only the polish reaches."""
+    from carmkin.views import polish
+
+    window = polish.WINDOW
+    times = {True: [], False: []}
+    maps = {}
+    try:
+        for _ in range(repeats):
+            for on in (False, True):
+                polish.WINDOW = window if on else -1.0
+                start = time.perf_counter()
+                maps[on] = reach_map(system, target, primary, secondary, patient, workers=1)
+                times[on].append(time.perf_counter() - start)
+    finally:
+        polish.WINDOW = window
+    gained = int(np.sum(maps[True].reachable & ~maps[False].reachable))
+    print(f"the polish between the samples reaches {gained} more cell(s) of the map than the sampled search alone")
+    print(row("reach_map, 1 process, sampled search alone", min(times[False]), unit="s"))
+    print(row("reach_map, 1 process, with the polish", min(times[True]), min(times[False]), unit="s"))
+
+
 def against_previous_code(step: int) -> None:
-    """Section 4: today's reach_map and plan_view against the code before the one world, in the same run."""
+    """Section 5: today's reach_map and plan_view against the code before the one world, in the same run."""
     from _baseline import checkout, run
 
     old = checkout(BASELINE_REV)

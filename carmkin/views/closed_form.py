@@ -158,6 +158,15 @@ def families(system, targets, directions, theta2, frame, q_ref, distance_range) 
     return Families(theta, base, slope, lo, hi, e4 / span4 + e5 / span5)
 
 
+def base_frame(system, q_hold) -> np.ndarray:
+    """``E·K`` (4, 4): the C-arm base frame at d0 = 0 in the table frame with the table joints of ``q_hold``
+    (nq,) held (``K`` alone without a motorized table)."""
+    if not system.table.joints:
+        return system.carm_base_pose
+    _, q_table = system.split(q_hold)
+    return system.table_motion(q_table) @ system.carm_base_pose
+
+
 def joints(system, fam: Families, index, lam, q_hold) -> np.ndarray:
     """Configurations (M, nq) of families ``index`` (tuple of (M,) index arrays into [n, k, σ]) at λ (M,),
     the table joints between d0 and d1 held at ``q_hold`` (nq,)."""

@@ -28,7 +28,9 @@ class ReachMap:
     where unreachable), ``clearance`` (P, S) exact (m), ``distance`` (P, S) source–target (m), ``binding``
     (P, S) the constraint that binds an unreachable cell (a joint group or ``"contact"``), ``reason`` (P, S)
     its sentence; ``directions`` (P, S, 3) the beams (table frame), ``target`` (3,) m; ``rank`` (P, S) the
-    answer's position in its cell's search order (0: the first candidate; −1: unreachable)."""
+    answer's position in its cell's search order (0: the first candidate; −1: unreachable;
+    :data:`~carmkin.views.search.MAX_EXACT_CHECKS`: found by the polish between the samples,
+    :mod:`carmkin.views.polish`)."""
 
     primary_deg: np.ndarray
     secondary_deg: np.ndarray

@@ -11,6 +11,15 @@ For N cells (target, beam direction, distance range) at once:
 3. per cell, the candidates in that order checked exactly (:meth:`carmkin.world.World.nearest`) until one keeps the
    margin; the first that does is the answer, with its exact clearance. A candidate inside a certified
    contact region of an earlier one (:mod:`carmkin.views.regions`) touches and is not checked.
+4. per cell that every candidate left in contact, with its best exact clearance within
+   :data:`carmkin.views.polish.WINDOW` of the margin: an ascent of the exact clearance between the samples
+   (continuous wigwag, the distance anywhere in its family's exact interval) from its best candidates
+   (:mod:`carmkin.views.polish`); a point that keeps the margin is the answer.
+
+The sampled passes alone missed valid configurations between their samples (issue 31: 2 of 153 views called
+unreachable); with step 4 a brute force that shares none of this code (``tests/views/bruteforce.py``, run by
+``python benchmarks/bruteforce_views.py``) finds none on the views it calls unreachable — a check, not a
+proof (docs/views.md has the numbers).
 
 Most cells are answered by their first candidate, so it is found and checked for every cell first (the
 best-scored distances alone), and only the cells it leaves open get the rest of their candidates. The
@@ -30,7 +39,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import closed_form
+from . import closed_form, polish
 from .regions import Regions
 
 #: Wigwag samples are at most this far apart (rad) — finer than the 1° roll steps of the acceptance check.
@@ -88,14 +97,7 @@ class Outcome:
     distance: np.ndarray
     reason: np.ndarray
     binding: np.ndarray
-    rank: np.ndarray  # (N,) position of the answer in its cell's search order (-1: unreachable)
-
-
-def _frame(system, q_hold) -> np.ndarray:
-    if not system.table.joints:
-        return system.carm_base_pose
-    _, q_table = system.split(q_hold)
-    return system.table_motion(q_table) @ system.carm_base_pose
+    rank: np.ndarray  # (N,) the answer's place in its cell's search order (-1: unreachable; MAX_EXACT_CHECKS: polished)
 
 
 def _lambda_at(fam, idx, s):
@@ -125,7 +127,8 @@ def _candidates(ctx: Context, chunk, kinds):
         has = inside.any(axis=1)
         s_star = np.where(has, s_grid[n, best], 0.5 * (s_lo + s_hi))
         # The roll about the beam, the same for every distance of a family.
-        x = closed_form.source_x_axes(fam.theta[idx][:, 0], fam.theta[idx][:, 1], _frame(system, hold))
+        frame = closed_form.base_frame(system, hold)
+        x = closed_form.source_x_axes(fam.theta[idx][:, 0], fam.theta[idx][:, 1], frame)
         roll = np.arctan2(np.einsum("ij,ij->i", x, e2[n]), np.einsum("ij,ij->i", x, e1[n]))
         for kind in kinds:
             # Distance choices per family: the best-scored one and points spread over its interval (the
@@ -216,6 +219,7 @@ class _State:
     regions: Regions
     no_roll: np.ndarray  # a fixed roll that no wigwag value in range gives
     closest: dict = field(default_factory=dict)  # cell -> (distance, pair) of its closest exact check
+    touched: list = field(default_factory=list)  # (cells, distances, q) of the exact checks below the margin
 
     @classmethod
     def empty(cls, N: int, nq: int, regions: Regions) -> "_State":
@@ -239,7 +243,7 @@ def _chunk(ctx: Context, targets, directions, distance_range, x_axes, index, sta
     grid_score = world.beam.bound(sources.reshape(-1, 3), np.repeat(directions, DISTANCE_SAMPLES, axis=0))
     chunk = _Chunk(targets, directions, s_grid, grid_score.reshape(N, DISTANCE_SAMPLES), [], distance_range, index)
     for hold in ctx.holds:
-        frame = _frame(system, hold)
+        frame = closed_form.base_frame(system, hold)
         theta2 = ctx.theta2
         if fixed.any():
             roots = closed_form.theta2_for_roll(directions[fixed], x_axes[fixed], ctx.theta2, frame)
@@ -286,6 +290,7 @@ def _check(ctx: Context, state: _State, n, q, where, rank) -> None:
                 state.closest[cell] = (dk, pk)
     if touching:
         state.regions.add(n[rows[touching]], where[rows[touching]], distance[touching], pair[touching])
+        state.touched.append((n[rows[touching]], distance[touching], q[rows[touching]]))
 
 
 def solve_cells(ctx: Context, targets, directions, distance_range, x_axes=None, workers: int = 1) -> Outcome:
@@ -353,7 +358,31 @@ def _solve(ctx: Context, targets, directions, distance_range, x_axes) -> Outcome
             rows = np.flatnonzero((rank >= start) & (rank < start + size))
             start, size = start + size, min(2 * size, ROUND)
             _check(ctx, state, n[rows], q[rows], where[rows], rank[rows])
+    _polish(ctx, state, targets, directions, distance_range, x_axes)
     return _outcome(ctx, state, targets)
+
+
+def _polish(ctx: Context, state: _State, targets, directions, distance_range, x_axes) -> None:
+    """The cells every sampled candidate left in contact, within :data:`carmkin.views.polish.WINDOW` of the
+    margin: ascend from their best candidates between the samples (:mod:`carmkin.views.polish`); a cell
+    whose ascent keeps the margin is reachable there (its rank: after every sampled candidate)."""
+    if not state.touched:
+        return
+    cells, distances, q = (np.concatenate([part[i] for part in state.touched]) for i in range(3))
+    keep = ~state.reachable[cells] & (distances >= ctx.margin - polish.WINDOW)
+    cells, distances, q = cells[keep], distances[keep], q[keep]
+    rows = polish.seeds(cells, distances, q, ctx.system)
+    if not len(rows):
+        return
+    cells, distances, q = cells[rows], distances[rows], q[rows]
+    fixed = np.all(np.isfinite(x_axes[cells]), axis=1)
+    found, q_new, clearance = polish.polish(ctx, cells, targets[cells], directions[cells], distance_range[cells],
+                                            fixed, q, distances)
+    for k in np.flatnonzero(found).tolist():
+        cell = int(cells[k])
+        if not state.reachable[cell] or clearance[k] > state.clearance[cell]:
+            state.reachable[cell], state.q[cell], state.clearance[cell] = True, q_new[k], clearance[k]
+            state.rank[cell] = MAX_EXACT_CHECKS
 
 
 def _outcome(ctx: Context, state: _State, targets) -> Outcome:

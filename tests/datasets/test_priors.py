@@ -23,8 +23,11 @@ PRESETS = ("siremobile-iso-c3d", "siremobile-iso-c3d-motorized-table")
 #: Angles read back from FK vs the view's (deg): the search puts the beam on the view to 1e-9 (rad).
 ANGLE_TOLERANCE_DEG = 1e-6
 #: Clearance of the sample vs the pair-by-pair minimum of validity's scene (m): both coal, by two routes
-#: (the bounded scene's batch vs one call per pair); GJK's convergence leaves ~1e-7 m between them.
-CLEARANCE_TOLERANCE = 1e-6
+#: (the bounded scene's batch vs one call per pair); GJK's convergence leaves ~1e-7 m between them, and up to
+#: ~1.1e-6 m where this test's shared scene starts GJK from an earlier query's guess (reachable-sphere sample 87
+#: of seed 3 once the views' polish changed the draws: 0.0563306 here, 0.05632958 from a fresh world and the
+#: sample).
+CLEARANCE_TOLERANCE = 2e-6
 #: KS test: the standard-view offsets are N(0, SD) unless p < this.
 KS_ALPHA = 0.01
 COUNTS = {"standard-views": 300, "reachable-sphere": 200, "sweep": 100, "joint-uniform": 300}
