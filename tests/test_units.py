@@ -173,3 +173,14 @@ def test_plan_sweep_names_a_target_in_mm_not_a_joint():
 
     with pytest.raises(SweepError, match=r"^target .*given in mm\? 100 mm = 0.1 m"):
         plan_sweep(PRESET, [0.0, -100.0, 0.0], n_views=10)
+
+
+def test_a_view_target_in_mm_is_refused_naming_the_slip():
+    """100 mm above the origin given as (0, -100, 0): the view says "given in mm?" instead of a 20 s search
+    ending in "unreachable"."""
+    from carmkin.errors import ViewError
+    from carmkin.views import View
+
+    with pytest.raises(ViewError, match=r"target .*given in mm\? 100 mm = 0\.1 m"):
+        View.from_angles(0.0, 0.0, (0.0, -100.0, 0.0))
+    assert View.from_angles(0.0, 0.0, (0.0, -0.1, 0.0)).target == (0.0, -0.1, 0.0)

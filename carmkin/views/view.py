@@ -23,14 +23,15 @@ from carmkin.errors import CarmkinError, ViewError
 from carmkin.imaging.projection import patient_pose
 from carmkin.interop import dicom
 from carmkin.transforms import check_rigid_transform
-from carmkin.validation import real_array, real_scalar, rigid_transform
+from carmkin.validation import real_array, real_scalar, rigid_transform, target_point
 
 #: Below this norm (m) a direction or segment is refused as undefined.
 DIRECTION_TOLERANCE = 1e-9
 
 
 def _point(value, name) -> np.ndarray:
-    return real_array(value, name, (3,), error=ViewError, unit="m")
+    """A point (3,) in m, table frame; one given in mm is refused naming the slip (:func:`target_point`)."""
+    return target_point(value, name, error=ViewError)
 
 
 def _unit(value, name) -> np.ndarray:
