@@ -222,11 +222,11 @@ def check_joint_ranges(system: CArmSystem, q: np.ndarray, option: str) -> None:
                 f"by {excess * scale[i]:+.4g} {unit}")
 
 
-def format_joints(system: CArmSystem, q, digits: int = 3, sign: bool = True) -> str:
+def format_joints(system: CArmSystem, q, digits: int = 3, sign: bool = True, between: str = "=") -> str:
     """``"name=+1.000 mm, name=-2.500°, ..."`` for q (nq,) in m/rad (a value that rounds to zero prints as
-    +0.000, never -0.000)."""
+    +0.000, never -0.000); ``between`` goes between a name and its value (``" "`` for moves)."""
     spec = f"{'+' if sign else ''}.{digits}f"
-    return ", ".join(f"{n}={round(float(v), digits) + 0.0:{spec}}{' mm' if u == 'mm' else '°'}"
+    return ", ".join(f"{n}{between}{round(float(v), digits) + 0.0:{spec}}{' mm' if u == 'mm' else '°'}"
                      for n, u, v in zip(system.joint_names, joint_units(system), np.asarray(q) * to_cli_units(system)))
 
 

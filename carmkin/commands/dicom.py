@@ -17,12 +17,11 @@ tag. Needs pydicom (the dicom extra) for reading and writing.
 from __future__ import annotations
 
 import argparse
-import math
 
 import numpy as np
 
-from ._common import add_alias, add_json_argument, add_preset_argument, joints_json, patient_position, system_from_args, \
-    write_json
+from ._common import add_alias, add_json_argument, add_preset_argument, format_joints, joints_json, patient_position, \
+    system_from_args, write_json
 from ._interop import add_configuration_argument, configuration, describe, millimetres
 
 HELP = "XA / Enhanced XA geometry of a configuration, synthetic datasets, moves to a DICOM image's view"
@@ -112,7 +111,5 @@ def _read(system, q, args, origin, ds) -> int:
     write_json(args, {**out, "path": getattr(result.path, "value", str(result.path)), "q": joints_json(system, result.q),
                       "moves": joints_json(system, result.q - q)})
     print(f"configuration ({getattr(result.path, 'value', result.path)}): {describe(system, result.q)}")
-    moves = result.q - q
-    print("moves: " + ", ".join(f"{n} {m * 1e3 if p else math.degrees(m):+.3f}{' mm' if p else '°'}"
-                                for n, m, p in zip(system.joint_names, moves, system.prismatic)))
+    print("moves: " + format_joints(system, result.q - q, between=" "))
     return 0
