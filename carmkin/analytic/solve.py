@@ -30,17 +30,17 @@ def solver_for(system) -> ClosedFormIK:
     return ClosedFormIK(system)
 
 
-def reference(q_current, n_joints: int = 6):
-    """``q_current`` as a sequence of floats (m, rad), zero when None; a plainly valid vector takes the fast
-    path (:func:`carmkin.validation.plain_floats`)."""
+def reference(q_current):
+    """``q_current`` (6,) as a sequence of floats (m, rad), :data:`ZERO` when None; a plainly valid vector
+    takes the fast path (:func:`carmkin.validation.plain_floats`)."""
     if q_current is None:
-        return ZERO if n_joints == 6 else (0.0,) * n_joints
-    ref = plain_floats(q_current, n_joints, JOINT_VALUE_LIMIT)
+        return ZERO
+    ref = plain_floats(q_current, 6, JOINT_VALUE_LIMIT)
     if ref is not None:
         return ref
-    ref = check_configuration(q_current, n_joints, "q_current")
+    ref = check_configuration(q_current, 6, "q_current")
     if ref.ndim != 1:
-        raise InvalidConfigurationError(f"q_current must be a finite vector of shape ({n_joints},), got {ref.shape}")
+        raise InvalidConfigurationError(f"q_current must be a finite vector of shape (6,), got {ref.shape}")
     return tuple(ref.tolist())
 
 
@@ -49,7 +49,7 @@ def solve_pose(system, T, q_current=None) -> IKResult:
     ``system`` already known to be a :class:`carmkin.CArmSystem`; see :func:`carmkin.analytic_ik.solve`."""
     ik = solver_for(system)
     T, rows, correction = pose_rows(T, "T")
-    q_ref = ZERO if q_current is None else reference(q_current)
+    q_ref = reference(q_current)
     q0, q1, det_j, _ = ik.angles_and_translations(rows)
     # singular: |det J| below SINGULAR_TOLERANCE (or NaN), or translations the closed form cannot give
     if not abs(det_j) >= SINGULAR_TOLERANCE or not math.isfinite(q0[0] + q1[0] + q0[3] + q1[3]):
