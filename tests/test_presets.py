@@ -31,7 +31,8 @@ def _with_line(section: str, line: str, text: str = BUILTIN) -> str:
     """``text`` with ``line`` added at the top of ``[section]`` ("" = top level)."""
     if not section:
         return f"{line}\n{text}"
-    assert f"[{section}]\n" in text
+    if f"[{section}]\n" not in text:  # an optional section the file lacks (e.g. [calibration])
+        return f"{text}\n[{section}]\n{line}\n"
     return text.replace(f"[{section}]\n", f"[{section}]\n{line}\n", 1)
 
 

@@ -15,6 +15,7 @@ from carmkin.validation import JOINT_VALUE_LIMIT, plain_floats, unit_slip
 
 from . import kinematics
 from .bounds import MAX_ANGLE, MAX_LENGTH, check_joint_limits
+from .calibration import Calibration
 from .params import (
     JOINT_NAMES,
     PRISMATIC,
@@ -50,16 +51,18 @@ class CArmSystem:
     table: TableGeometry = field(default_factory=TableGeometry)
     body: BodyGeometry = field(default_factory=BodyGeometry)
     name: str = "custom"
+    calibration: Calibration = field(default_factory=Calibration)
 
     def __post_init__(self) -> None:
         for name, kind in (("carm", CArmGeometry), ("setup", TableSetup), ("table", TableGeometry),
-                           ("body", BodyGeometry), ("name", str)):
+                           ("body", BodyGeometry), ("name", str), ("calibration", Calibration)):
             if not isinstance(getattr(self, name), kind):
                 raise InvalidParameterError(
                     f"CArmSystem.{name} must be a {kind.__name__}, got {type(getattr(self, name)).__name__} "
                     f"{getattr(self, name)!r:.80}")
         for joint_range, prismatic in zip(self.joint_ranges, self.prismatic):
             check_joint_limits(joint_range, prismatic, "CArmSystem")
+        self.calibration.offsets(self.nq)  # one zero offset per joint, or none
 
     def replace(self, **changes) -> "CArmSystem":
         """A new system with some fields replaced, e.g. ``system.replace(carm=..., setup=...)``."""

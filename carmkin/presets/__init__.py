@@ -20,6 +20,7 @@ import numpy as np
 
 from carmkin.errors import InvalidParameterError, PresetError, UnknownPresetError
 from carmkin.model import kinematics
+from carmkin.model.calibration import Calibration
 from carmkin.model.params import (
     BodyGeometry,
     CArmGeometry,
@@ -299,4 +300,20 @@ def _system(data: dict, default_name: str) -> CArmSystem:
     )
     body = BodyGeometry(**{key[: -len("_mm")]: _mm3(value, key) if isinstance(value, list) else value * _MM
                             for key, value in data.get("body", {}).items()})
-    return CArmSystem(carm=carm, setup=setup, table=table, body=body, name=data.get("name", default_name))
+    system = CArmSystem(carm=carm, setup=setup, table=table, body=body, name=data.get("name", default_name))
+    return system.replace(calibration=_calibration(data["calibration"], system)) if "calibration" in data else system
+
+
+def _calibration(section: dict, system: CArmSystem) -> Calibration:
+    """``[calibration]``: ``<joint>_zero_offset_mm|deg`` (absent = 0), ``detector_rotation_deg``, ``sag_*_mm``."""
+    offsets = []
+    for name, prismatic in zip(system.joint_names, system.prismatic):
+        unit, scale = ("mm", _MM) if prismatic else ("deg", math.pi / 180)
+        offsets.append(section.get(f"{name}_zero_offset_{unit}", 0.0) * scale)
+    known = {f"{name}_zero_offset_{'mm' if p else 'deg'}" for name, p in zip(system.joint_names, system.prismatic)}
+    for key in section:
+        if "_zero_offset_" in key and key not in known:
+            raise PresetError(f"[calibration] {key}: the system has no such joint (joints: "
+                              f"{', '.join(system.joint_names)})")
+    return Calibration(tuple(offsets), math.radians(section.get("detector_rotation_deg", 0.0)),
+                       section.get("sag_cos_mm", 0.0) * _MM, section.get("sag_sin_mm", 0.0) * _MM)

@@ -20,6 +20,7 @@ from carmkin.model.bounds import (
     MIN_LENGTH,
     check_real,
 )
+from carmkin.model.params import JOINT_NAMES, PRISMATIC
 from carmkin.model.table_joints import CHAIN_ORDER, KINDS
 
 #: One millimetre in metres and one degree in radians: the preset's units.
@@ -93,6 +94,15 @@ SECTIONS: dict[str, dict[str, Rule]] = {
         "up_in_table": _DIRECTION,
         "pivot_mm": _length(size=3),
         **_limits({name: KINDS[name][0] for name in CHAIN_ORDER}),
+    },
+    # a calibrated device (carmkin.model.calibration.Calibration): reading + zero offset = model joint value
+    "calibration": {
+        **{f"{name}_zero_offset_{'mm' if prismatic else 'deg'}": _PRISMATIC_LIMIT if prismatic else _REVOLUTE_LIMIT
+           for name, prismatic in {**dict(zip(JOINT_NAMES, PRISMATIC)),
+                                   **{name: KINDS[name][0] for name in CHAIN_ORDER}}.items()},
+        "detector_rotation_deg": _REVOLUTE_LIMIT,
+        "sag_cos_mm": _PRISMATIC_LIMIT,
+        "sag_sin_mm": _PRISMATIC_LIMIT,
     },
     "body": {
         "floor_height_mm": _length(),

@@ -20,7 +20,8 @@ from .schema import MM
 
 
 def to_toml(system: CArmSystem) -> str:
-    """The preset text of ``system``: ``[carm]``, ``[setup]`` (DH constants), ``[table]``, ``[body]``."""
+    """The preset text of ``system``: ``[carm]``, ``[setup]`` (DH constants), ``[table]``, ``[body]``, and
+    ``[calibration]`` when the system carries a calibration that is not nominal."""
     import tomlkit  # only here: loading does not need it
 
     if not isinstance(system, CArmSystem):
@@ -45,8 +46,10 @@ def to_toml(system: CArmSystem) -> str:
         table_keys["joints"] = _table_joints(table.joints)
     body = {f"{f.name}_mm": [v / MM for v in value] if isinstance(value, tuple) else value / MM
             for f in fields(BodyGeometry) for value in (getattr(system.body, f.name),)}
-    return tomlkit.dumps({"name": system.name, "carm": carm_keys, "setup": setup_keys, "table": table_keys,
-                          "body": body})
+    sections = {"name": system.name, "carm": carm_keys, "setup": setup_keys, "table": table_keys, "body": body}
+    if not system.calibration.is_nominal:
+        sections["calibration"] = _calibration(system)
+    return tomlkit.dumps(sections)
 
 
 def save_preset(system: CArmSystem, path: str | Path) -> Path:
@@ -66,6 +69,15 @@ def _limits(joint_range: JointRange, prismatic: bool, name: str | None = None) -
 
 def _mm(metres: float) -> float:
     return metres / MM
+
+
+def _calibration(system: CArmSystem) -> dict[str, float]:
+    """``[calibration]``: every joint's zero offset (mm, deg), the detector rotation (deg) and the sag (mm)."""
+    calibration = system.calibration
+    keys = {f"{name}_zero_offset_{'mm' if prismatic else 'deg'}": (_mm if prismatic else math.degrees)(offset)
+            for name, prismatic, offset in zip(system.joint_names, system.prismatic, calibration.offsets(system.nq))}
+    return {**keys, "detector_rotation_deg": math.degrees(calibration.detector_rotation),
+            "sag_cos_mm": _mm(calibration.sag_cos), "sag_sin_mm": _mm(calibration.sag_sin)}
 
 
 def _table_joints(joints) -> dict:
