@@ -15,8 +15,9 @@ from .fit import CalibrationResult, identify
 from .identifiability import MIN_SINGULAR_VALUE, Held, Identifiability, Reason
 from .quantities import Parameter, adjust, parameters, values
 from .reprojection import REFERENCE_CUBE, model_projections, reference_points
-from .simulate import estimate_projection, measured_projections
+from .simulate import EXAMPLE_PERTURBATION, estimate_projection, measured_projections, spread_readings
 
-__all__ = ["MIN_SINGULAR_VALUE", "REFERENCE_CUBE", "CalibrationResult", "Held", "Identifiability", "Parameter",
-           "Reason", "adjust", "estimate_projection", "identify", "measured_projections", "model_projections",
-           "parameters", "reference_points", "values"]
+__all__ = ["EXAMPLE_PERTURBATION", "MIN_SINGULAR_VALUE", "REFERENCE_CUBE", "CalibrationResult", "Held",
+           "Identifiability", "Parameter", "Reason", "adjust", "estimate_projection", "identify",
+           "measured_projections", "model_projections", "parameters", "reference_points", "spread_readings",
+           "values"]

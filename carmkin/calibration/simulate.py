@@ -14,6 +14,35 @@ from carmkin.validation import real_array, real_scalar
 
 from .reprojection import model_projections, pixels, reference_points
 
+#: A device off its nominal model by a few mm, tenths of a degree and pixels (each parameter's unit), for the
+#: acceptance check, the docs and the notebook; it leaves alone the four parameters no set of views separates
+#: from a joint zero offset (length_offset, gamma3, D2, D3: docs/calibration.md).
+EXAMPLE_PERTURBATION = {
+    "table_translation_zero_offset": 1.5, "vertical_zero_offset": -2.0, "wigwag_zero_offset": 0.2,
+    "horizontal_zero_offset": 2.5, "angular_zero_offset": -0.3, "orbital_zero_offset": 0.4,
+    "source_to_detector": 4.0, "principal_point_u": 3.0, "principal_point_v": -2.0, "detector_rotation": 0.3,
+    "orbital_offset": 3.0, "a1": 2.0, "a2": -1.5, "gamma1": 0.2, "gamma2": -0.3, "D1": 2.0,
+    "sag_cos": 1.0, "sag_sin": -2.0,
+}
+#: The fraction of each joint's range left out at both ends by :func:`spread_readings` (10 %).
+RANGE_MARGIN = 0.1
+
+
+def spread_readings(system: CArmSystem, n: int, seed: int = 0, joints=None) -> np.ndarray:
+    """Joint readings (n, nq) spread over the joints: uniform in the middle 80 % of each joint's range
+    (:data:`RANGE_MARGIN`), from ``numpy.random.default_rng(seed)``. ``joints``: names of the joints that move
+    (default all); the others stay at the middle of their range (e.g. ``joints=("orbital",)``: an orbital sweep
+    in random order)."""
+    require_system(system, CalibrationError)
+    lower, upper = system.lower, system.upper
+    u = np.random.default_rng(seed).uniform(RANGE_MARGIN, 1.0 - RANGE_MARGIN, (n, system.nq))
+    if joints is not None:
+        unknown = [j for j in joints if j not in system.joint_names]
+        if unknown:
+            raise CalibrationError(f"joints: unknown joint(s) {unknown}; joints: {', '.join(system.joint_names)}")
+        u[:, [name not in joints for name in system.joint_names]] = 0.5
+    return lower + (upper - lower) * u
+
 
 def measured_projections(system: CArmSystem, q, noise_px: float = 0.1, seed: int = 0, points=None) -> np.ndarray:
     """Simulated measured P (N, 3, 4) of ``system`` (the "true" device, e.g. :func:`.quantities.adjust` of a
