@@ -149,6 +149,7 @@ perturbation = st.fixed_dictionaries({
     for name, unit in ((p.name, p.unit) for p in cal.parameters(SYSTEM) if p.name not in STRUCTURAL)})
 
 
+@pytest.mark.slow  # ~10 s: 8 simulated calibrations
 @settings(max_examples=8)
 @given(perturbation, st.integers(0, 1000))
 def test_random_perturbations_are_recovered_within_their_covariance(changes, seed):
