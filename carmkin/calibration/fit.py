@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from carmkin.errors import CalibrationError
+from carmkin.errors import CalibrationError, InvalidParameterError
 from carmkin.model.system import CArmSystem, require_system
 from carmkin.validation import projection_matrix, real_array
 
@@ -121,7 +121,12 @@ def identify(system, q, P, points=None, parameters=None) -> CalibrationResult:
     nominal = params.values(system, chosen)
 
     def residual(subset, x):
-        return (pixels(model_projections(params.with_values(system, subset, x), readings), X) - observed).ravel()
+        try:
+            candidate = params.with_values(system, subset, x)
+        except InvalidParameterError:  # a trial step beyond a model bound (e.g. a negative SDD): a bad step
+            return np.full(observed.size, np.inf)
+        with np.errstate(all="ignore"):  # a trial step may put a point at the source: least_squares retreats
+            return (pixels(model_projections(candidate, readings), X) - observed).ravel()
 
     before = _per_view(residual(chosen, nominal), len(readings))
     report = analyse(_jacobian(lambda x: residual(chosen, x), nominal), [p.name for p in chosen])

@@ -10,7 +10,7 @@ import numpy as np
 
 from carmkin.errors import CalibrationError
 from carmkin.model.system import CArmSystem, require_system
-from carmkin.validation import real_array, real_scalar
+from carmkin.validation import integer, real_array, real_scalar
 
 from .reprojection import model_projections, pixels, reference_points
 
@@ -34,9 +34,12 @@ def spread_readings(system: CArmSystem, n: int, seed: int = 0, joints=None) -> n
     (default all); the others stay at the middle of their range (e.g. ``joints=("orbital",)``: an orbital sweep
     in random order)."""
     require_system(system, CalibrationError)
+    n, seed = integer(n, "n", low=1, error=CalibrationError), integer(seed, "seed", low=0, error=CalibrationError)
     lower, upper = system.lower, system.upper
     u = np.random.default_rng(seed).uniform(RANGE_MARGIN, 1.0 - RANGE_MARGIN, (n, system.nq))
     if joints is not None:
+        if isinstance(joints, str) or not hasattr(joints, "__iter__"):
+            raise CalibrationError(f"joints must be a list of joint names, got {joints!r:.80}")
         unknown = [j for j in joints if j not in system.joint_names]
         if unknown:
             raise CalibrationError(f"joints: unknown joint(s) {unknown}; joints: {', '.join(system.joint_names)}")
@@ -53,6 +56,7 @@ def measured_projections(system: CArmSystem, q, noise_px: float = 0.1, seed: int
     if Q.ndim != 2 or Q.shape[1] != system.nq:
         raise CalibrationError(f"q (joint readings) must have shape (N, {system.nq}), got {Q.shape}")
     noise = real_scalar(noise_px, "noise_px", error=CalibrationError, low=0.0, unit="px")
+    seed = integer(seed, "seed", low=0, error=CalibrationError)
     X = reference_points(system, Q) if points is None else real_array(points, "points", (len(Q), None, 3),
                                                                       error=CalibrationError, unit="m")
     observed = pixels(model_projections(system, Q), X)

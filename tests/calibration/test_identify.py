@@ -196,3 +196,31 @@ def test_bad_input_is_refused_naming_the_field():
         cal.identify(SYSTEM, Q, P, points=cal.reference_points(SYSTEM, Q) - 2.0 * SYSTEM.fk(Q)[:, None, :3, 2])
     with pytest.raises(CalibrationError, match="system must be a carmkin.CArmSystem"):
         cal.identify("siremobile", Q, P)
+
+
+@pytest.mark.parametrize("call, match", [
+    (lambda: cal.spread_readings(SYSTEM, 3.0), "n must be an integer"),
+    (lambda: cal.spread_readings(SYSTEM, 3, seed=-1), "seed must be an integer"),
+    (lambda: cal.spread_readings(SYSTEM, 3, joints="orbital"), "joints must be a list of joint names"),
+    (lambda: cal.spread_readings(SYSTEM, 3, joints=["orbit"]), r"unknown joint\(s\) \['orbit'\]"),
+    (lambda: cal.measured_projections(SYSTEM, np.zeros((2, 6)), noise_px=-0.1), "noise_px"),
+    (lambda: cal.measured_projections(SYSTEM, np.zeros((2, 6)), seed="0"), "seed must be an integer"),
+    (lambda: cal.adjust(SYSTEM, {"a1": "2 mm"}), "changes"),
+    (lambda: cal.adjust(SYSTEM, [("a1", 2.0)]), "changes must be a dict"),
+    (lambda: cal.identify(SYSTEM, np.zeros((3, 6)), np.zeros((3, 3, 4)) + 1, parameters="a1"),
+     "parameters must be a list"),
+    (lambda: cal.identify(SYSTEM, np.zeros((3, 6)), np.zeros((3, 3, 4)) + 1, points="cube"), "points"),
+])
+def test_junk_arguments_are_refused_naming_them(call, match):
+    with pytest.raises(CalibrationError, match=match):
+        call()
+
+
+def test_views_of_a_far_other_device_fit_without_a_warning(recwarn):
+    """P of a device 200 mm and 5 degrees off the nominal: the fit's trial steps leak no numpy warning."""
+    other = cal.adjust(SYSTEM, {"source_to_detector": 200.0, "orbital_offset": -150.0, "angular_zero_offset": 5.0,
+                                "principal_point_u": 80.0})
+    Q = cal.spread_readings(SYSTEM, 10, seed=11)
+    result = _fit(other, Q, noise_px=0.0)
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
+    assert result.success and result.residual_px.max() < EXACT
