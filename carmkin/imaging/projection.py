@@ -101,16 +101,23 @@ def projection_matrix(system, q, patient=None) -> np.ndarray:
 def projection_matrices(system, Q) -> np.ndarray:
     """Projection matrices (N, 3, 4) of configurations ``Q`` (N, nq) (model joint values), vectorized: each
     equals :func:`projection_matrix` of its row (world = the table frame, m to px)."""
-    carm = instance(system, CArmSystem, "system", error=ImagingError).carm
+    instance(system, CArmSystem, "system", error=ImagingError)
     if np.ndim(Q) != 2:
         raise ImagingError(f"Q must be configurations (N, {system.nq}), got shape {np.shape(Q)}")
     T = system.fk(Q)
-    K = carm.intrinsics()
-    if not system.calibration.is_nominal:  # H K, the calibrated detector of each view
-        K = system.calibration.detector_map(carm, np.asarray(Q, dtype=float)[:, -1]) @ K
+    K = view_intrinsics(system, Q)
     R_t = np.swapaxes(T[:, :3, :3], 1, 2)
     extrinsics = np.concatenate((R_t, -R_t @ T[:, :3, 3:]), axis=2)  # [Rᵀ | −Rᵀ p] per view
     return K @ extrinsics
+
+
+def view_intrinsics(system, Q) -> np.ndarray:
+    """The intrinsics of each view of configurations ``Q`` (N, nq): K (3, 3) of a nominal system, else the
+    calibrated detector's ``H K`` (N, 3, 3) (:meth:`~carmkin.model.calibration.Calibration.detector_map`)."""
+    K = system.carm.intrinsics()
+    if system.calibration.is_nominal:
+        return K
+    return system.calibration.detector_map(system.carm, np.asarray(Q, dtype=float)[:, -1]) @ K
 
 
 def pose_from_projection(P) -> tuple[np.ndarray, np.ndarray]:

@@ -334,11 +334,11 @@ def plan_sweep(system, target, arc_deg: float = 190.0, n_views: int = 100, patie
         first = SweepFailure(first.kind, first.angle, first.frame, _largest_run(phi, frame_ok, seg_ok), first.joint,
                              first.pair, first.distance)
     poses = system.fk(np.where(np.isfinite(q), q, 0.0), check_units=False)
-    from carmkin.imaging.projection import intrinsics
+    from carmkin.imaging.projection import view_intrinsics
 
-    K, _ = intrinsics(system)
+    K = view_intrinsics(system, np.where(np.isfinite(q), q, 0.0))  # H K per view for a calibrated system
     R_t = np.transpose(poses[:, :3, :3], (0, 2, 1))
-    P = K[None] @ np.concatenate((R_t, -R_t @ poses[:, :3, 3:4]), axis=2)
+    P = K @ np.concatenate((R_t, -R_t @ poses[:, :3, 3:4]), axis=2)
     # The swept minimum of the whole arc: defined only where every frame has joints in range (else NaN).
     bound = bound if np.all(ok) and np.isfinite(bound) else math.nan
     return Sweep(system, q, phi, poses, P, target, float(distance), bool(compensate), w, q_plain, drift,

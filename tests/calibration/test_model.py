@@ -107,3 +107,16 @@ def test_the_calibration_section_is_checked():
         parse_preset(text + "\n[calibration]\norbital_zero_ofset_deg = 0.1\n")
     system = parse_preset(text + "\n[calibration]\norbital_zero_offset_deg = 0.5\n")
     assert system.calibration.offsets(6) == pytest.approx([0, 0, 0, 0, 0, math.radians(0.5)])
+
+
+def test_a_calibrated_sweep_has_the_calibrated_projection_matrices():
+    """Sweep.P of a calibrated system is the calibrated detector's (H K [Rᵀ|−Rᵀp] per view), not the nominal."""
+    from carmkin.sweeps import plan_sweep
+
+    nominal = carmkin.load_preset("siremobile-iso-c3d")
+    calibrated = nominal.replace(calibration=Calibration(joint_offsets=(0.0,) * 6, detector_rotation=0.01,
+                                                         sag_cos=0.001, sag_sin=-0.002))
+    sweep = plan_sweep(calibrated, (0.0, 0.0, 0.0), 190.0, 12)
+    P = projection_matrices(calibrated, sweep.q)
+    assert np.abs(sweep.P - P).max() <= 1e-12 * np.abs(P).max()
+    assert np.abs(plan_sweep(nominal, (0.0, 0.0, 0.0), 190.0, 12).P - P).max() > 1e-3 * np.abs(P).max()
