@@ -53,6 +53,9 @@ def _plan_arguments(parser: argparse.ArgumentParser) -> None:
                         help="clearance kept along the whole arc (mm, default 10)")
     parser.add_argument("--patient-box-mm", metavar="W,H,L[,X,Y,Z]",
                         help="box patient: full size (mm) along table X, Y, Z and its centre (mm, default 0,0,0)")
+    parser.add_argument("--acquisition-time-s", type=number(0.0, 3600.0, open_minimum=True, unit="s"), default=None,
+                        help="acquire the views over this time (s): check that the joints can follow it (their "
+                        "speeds and accelerations from the preset; exit 1 if one cannot)")
 
 
 def register(parser: argparse.ArgumentParser) -> None:
@@ -111,7 +114,15 @@ def _plan(args, system):
     return plan_sweep(system, parse_numbers(args.target_mm, 3, "--target-mm") / MM_PER_M, args.arc_deg, args.views,
                       patient=_patient(args.patient_box_mm), q_start=q_start, joint=_joint(args.joint),
                       distance=None if args.distance_mm is None else args.distance_mm / MM_PER_M,
-                      compensate=not args.plain, margin=args.margin_mm / MM_PER_M)
+                      compensate=not args.plain, margin=args.margin_mm / MM_PER_M,
+                      acquisition_time_s=args.acquisition_time_s)
+
+
+def _followed(sweep) -> bool:
+    """False when the joints cannot follow the asked acquisition time."""
+    from carmkin.model.motion import Follow
+
+    return sweep.timing is None or sweep.timing.status is not Follow.TOO_FAST
 
 
 def run(args: argparse.Namespace) -> int:
@@ -126,7 +137,7 @@ def run(args: argparse.Namespace) -> int:
     print(sweep.summary())
     _export(sweep, paths, plot)
     write_json(args, _sweep_json(sweep))
-    return 0 if sweep.success else 1
+    return 0 if sweep.success and _followed(sweep) else 1
 
 
 def _sweep_json(sweep) -> dict:
@@ -137,7 +148,18 @@ def _sweep_json(sweep) -> dict:
             "distance_mm": sweep.distance * MM_PER_M, "min_clearance_mm": sweep.min_clearance * MM_PER_M,
             "margin_mm": sweep.margin * MM_PER_M, "limiting_joint": sweep.limiting_joint,
             "failure": None if sweep.failure is None else str(sweep.failure),
-            "q": [joints_json(sweep.system, row) for row in q]}
+            "q": [joints_json(sweep.system, row) for row in q], **_timing_json(sweep)}
+
+
+def _timing_json(sweep) -> dict:
+    """The approach and the sweep's timing (s; None where unknown)."""
+    timing = sweep.timing
+    return {"approach_s": sweep.approach.seconds if sweep.approach is not None else None,
+            "acquisition_time_s": None if timing is None else timing.acquisition_time,
+            "minimum_acquisition_s": None if timing is None else timing.minimum_time,
+            "follows": None if timing is None else timing.status.value,
+            "binding_joint": None if timing is None else timing.joint,
+            "duration_s": None if timing is None else timing.duration}
 
 
 def _export(sweep, paths, plot) -> None:

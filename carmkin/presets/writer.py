@@ -20,7 +20,8 @@ from .schema import MM
 
 
 def to_toml(system: CArmSystem) -> str:
-    """The preset text of ``system``: ``[carm]``, ``[setup]`` (DH constants), ``[table]``, ``[body]``."""
+    """The preset text of ``system``: ``[carm]``, ``[setup]`` (DH constants), ``[table]``, ``[body]`` and,
+    when it has joint speeds, ``[motion]``."""
     import tomlkit  # only here: loading does not need it
 
     if not isinstance(system, CArmSystem):
@@ -45,8 +46,10 @@ def to_toml(system: CArmSystem) -> str:
         table_keys["joints"] = _table_joints(table.joints)
     body = {f"{f.name}_mm": [v / MM for v in value] if isinstance(value, tuple) else value / MM
             for f in fields(BodyGeometry) for value in (getattr(system.body, f.name),)}
-    return tomlkit.dumps({"name": system.name, "carm": carm_keys, "setup": setup_keys, "table": table_keys,
-                          "body": body})
+    document = {"name": system.name, "carm": carm_keys, "setup": setup_keys, "table": table_keys, "body": body}
+    if system.motion is not None:
+        document["motion"] = _motion(system)
+    return tomlkit.dumps(document)
 
 
 def save_preset(system: CArmSystem, path: str | Path) -> Path:
@@ -79,4 +82,15 @@ def _table_joints(joints) -> dict:
     keys = {"up_in_table": list(up), "pivot_mm": [v / MM for v in pivot]}
     for joint in joints:
         keys.update(_limits(joint.range, joint.prismatic))
+    return keys
+
+
+def _motion(system: CArmSystem) -> dict[str, float]:
+    """``[motion]``: each joint's speed and (when known) acceleration in mm or degrees per s and s²."""
+    keys = {}
+    for joint, prismatic in zip(system.motion.joints, system.prismatic):
+        unit, convert = ("mm", _mm) if prismatic else ("deg", math.degrees)
+        keys[f"{joint.name}_speed_{unit}_s"] = convert(joint.speed)
+        if joint.acceleration is not None:
+            keys[f"{joint.name}_acceleration_{unit}_s2"] = convert(joint.acceleration)
     return keys
