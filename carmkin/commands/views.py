@@ -188,6 +188,8 @@ def _print_plan(system, plan, position) -> None:
             print("  found by the QP with the motorized table's joints free (the closed form holds them)")
         for m in plan.moves:
             print(f"  move {m.joint}: {'clear' if m.clear else 'blocked'}" + (f" ({m.reason})" if m.reason else ""))
+        if plan.moves and plan.duration is not None:
+            print(f"  moves take {plan.duration}")
         return
     print(f"unreachable: {plan.reason}")
     if plan.nearest is not None:
@@ -203,7 +205,8 @@ def _plan_json(system, plan, position) -> dict:
     if plan.success:
         out.update(q=common.joints_json(system, plan.q), clearance_mm=plan.clearance * MM, distance_mm=plan.distance * MM,
                    rotation_deg=_rotation(system, plan.q, position),
-                   clearance_to_mm={k: v * MM for k, v in (plan.clearance_to or {}).items()})
+                   clearance_to_mm={k: v * MM for k, v in (plan.clearance_to or {}).items()},
+                   duration_s=plan.duration.seconds if plan.duration is not None else None)
     if plan.nearest is not None:
         out["nearest"] = {"angles_deg": list(plan.nearest.view.angles(position)), "angle_deg": float(np.degrees(plan.angle)),
                           "q": common.joints_json(system, plan.nearest.q), "clearance_mm": plan.nearest.clearance * MM}

@@ -169,6 +169,8 @@ class Duration:
     def __str__(self) -> str:
         if self.seconds is None:
             return f"duration unknown: {self.reason}"
+        if self.timing is not Timing.PATH and sum(p > 0 for p in self.parts) == 1:
+            return f"{self.seconds:.1f} s ({self.slowest} alone)"
         by = f", {self.slowest} the longest" if self.slowest else ""
         return f"{self.seconds:.1f} s ({self.timing.value}{by})"
 
