@@ -16,7 +16,7 @@ from carmkin.model.params import PRISMATIC, BodyGeometry, JointRange
 from carmkin.model.system import CArmSystem
 from carmkin.model.table_joints import standard_joints
 
-from .schema import MM
+from .schema import DEG, MM
 
 
 def to_toml(system: CArmSystem) -> str:
@@ -89,8 +89,13 @@ def _motion(system: CArmSystem) -> dict[str, float]:
     """``[motion]``: each joint's speed and (when known) acceleration in mm or degrees per s and s²."""
     keys = {}
     for joint, prismatic in zip(system.motion.joints, system.prismatic):
-        unit, convert = ("mm", _mm) if prismatic else ("deg", math.degrees)
+        unit, convert = ("mm", _mm) if prismatic else ("deg", _deg)
         keys[f"{joint.name}_speed_{unit}_s"] = convert(joint.speed)
         if joint.acceleration is not None:
             keys[f"{joint.name}_acceleration_{unit}_s2"] = convert(joint.acceleration)
     return keys
+
+
+def _deg(radians: float) -> float:
+    """Degrees by dividing by the loader's factor (π/180), so that the loader's product gives the value back."""
+    return radians / DEG
