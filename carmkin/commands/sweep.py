@@ -6,7 +6,9 @@ isocentre; --plain for the joint rotation alone), and checks the whole arc — b
 the table, the floor and a box patient (--patient-box-mm) with a --margin-mm clearance. It prints the swept
 clearance, the plain rotation's isocentre drift, the joint that limits the arc and the short-scan check
 (arc vs 180° + fan angle); exit 1 when the arc does not fit (the obstruction, its angle and the largest
-feasible arc are printed). Exports: --rtk-xml (RTK geometry, mm), --astra (.npy cone_vec rows, mm), --tigre
+feasible arc are printed), how long the sweep takes at the preset's joint speeds, and with
+--acquisition-time-s whether the joints can follow that time (exit 1 when one cannot: which, and by how
+much). Exports: --rtk-xml (RTK geometry, mm), --astra (.npy cone_vec rows, mm), --tigre
 (.npz TIGRE arrays, mm), --html (the arc in the viewer), --png (clearance and drift along the arc), --json (the plan).
 
 ``carmkin sweep reconstruct`` forward-projects RTK's Shepp–Logan along the planned sweep (Joseph, CPU),
@@ -22,6 +24,7 @@ import math
 import numpy as np
 
 from carmkin.errors import UsageError
+from carmkin.model.motion import ACQUISITION_TIME_RANGE
 
 from ._common import JOINTS_FLAG, MIN_DISTANCE_MM, MM_PER_M, add_joints_argument, add_json_argument, add_png_argument, \
     add_preset_argument, integer, joints_json, number, output_path, parse_joints, parse_numbers, plot_path, \
@@ -53,7 +56,7 @@ def _plan_arguments(parser: argparse.ArgumentParser) -> None:
                         help="clearance kept along the whole arc (mm, default 10)")
     parser.add_argument("--patient-box-mm", metavar="W,H,L[,X,Y,Z]",
                         help="box patient: full size (mm) along table X, Y, Z and its centre (mm, default 0,0,0)")
-    parser.add_argument("--acquisition-time-s", type=number(0.0, 3600.0, open_minimum=True, unit="s"), default=None,
+    parser.add_argument("--acquisition-time-s", type=number(*ACQUISITION_TIME_RANGE, unit="s"), default=None,
                         help="acquire the views over this time (s): check that the joints can follow it (their "
                         "speeds and accelerations from the preset; exit 1 if one cannot)")
 

@@ -5,7 +5,8 @@ secondary CRA +, CAU −; degrees) of --target-mm (table frame, mm) for a patien
 (--patient parametric, the default, sized by --patient-height-mm / --patient-mass-kg and placed by
 --patient-position, the DICOM Patient Position code; or --patient none). `--standard NAME` names a standard
 view instead (`carmkin views plan --standard list` lists them). It prints the joints (mm, deg), the clearance
-to patient, table and floor (mm), and when the view is unreachable the reason and the nearest reachable view.
+to patient, table and floor (mm), from --q-mm-deg the joint-by-joint moves and how long they take (s, at the
+preset's joint speeds), and when the view is unreachable the reason and the nearest reachable view.
 `carmkin views map` prints how many (primary, secondary) cells are reachable (default −90…90 × −45…45 at
 --step-deg 5); --png writes the map as a figure, --html a static page with the sphere of view directions
 coloured by clearance, --json the cells. Exit 1 when a planned view is unreachable.

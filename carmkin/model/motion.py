@@ -49,6 +49,9 @@ FOLLOW_TOLERANCE = 1e-9
 #: Largest speed (m/s or rad/s) and acceleration (m/s² or rad/s²) a joint may be given: 1e3, far beyond any
 #: C-arm or table (a larger value is a unit slip, e.g. mm/s given as m/s).
 MAX_RATE = 1e3
+#: Shortest and longest acquisition time (s) a sweep may be asked for: a millisecond to a day (beyond, a unit
+#: slip; the bounds keep the finite differences finite).
+ACQUISITION_TIME_RANGE = (1e-3, 86400.0)
 #: Smallest speed and acceleration a joint may be given (same units): 1e-6, a micrometre or microradian per
 #: second; zero or less is no speed (a joint that cannot move is not a joint).
 MIN_RATE = 1e-6
@@ -306,20 +309,25 @@ class FollowCheck:
                 f"{self.quantity} limit {limit})")
 
 
+def check_acquisition_time(value, error=MotionError) -> float:
+    """``value`` (s) as a float within :data:`ACQUISITION_TIME_RANGE`, or ``error`` naming
+    ``acquisition_time_s``."""
+    low, high = ACQUISITION_TIME_RANGE
+    return real_scalar(value, "acquisition_time_s", error=error, low=low, high=high, unit="s")
+
+
 def follow(motion: Motion | None, q, acquisition_time=None, prismatic=None) -> FollowCheck:
     """Can the joints follow the sampled sweep ``q`` (n, nq), n ≥ 2 views acquired at equal steps over
     ``acquisition_time`` (s, > 0; None: only the fastest time the joints allow)? ``motion`` None (a system
     without speeds) gives :attr:`Follow.NO_SPEEDS`. ``prismatic`` (nq,) bools: for the units of the
     sentence (default all revolute). A joint that cannot follow is data (``TOO_FAST``), not an error."""
     if motion is None:
-        return FollowCheck(Follow.NO_SPEEDS, None if acquisition_time is None else float(acquisition_time))
+        return FollowCheck(Follow.NO_SPEEDS, None if acquisition_time is None else check_acquisition_time(acquisition_time))
     Q = _joints(motion, q, "q", (None, motion.nq if isinstance(motion, Motion) else None))
     if len(Q) < 2:
         raise MotionError(f"a sweep needs at least two views to be timed, got {len(Q)}")
     if acquisition_time is not None:
-        acquisition_time = real_scalar(acquisition_time, "acquisition_time_s", error=MotionError, unit="s")
-        if not acquisition_time > 0:
-            raise MotionError(f"acquisition_time_s must be > 0 s, got {acquisition_time:g} s")
+        acquisition_time = check_acquisition_time(acquisition_time)
     prismatic = (False,) * motion.nq if prismatic is None else tuple(bool(p) for p in prismatic)
     steps = len(Q) - 1
     step = np.diff(Q, axis=0)                        # Δq per step (steps, nq)

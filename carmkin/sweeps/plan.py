@@ -306,9 +306,7 @@ def plan_sweep(system, target, arc_deg: float = 190.0, n_views: int = 100, patie
     margin = real_scalar(margin, "margin", error=SweepError, low=0.0, high=1.0, unit="m")
     tolerance = real_scalar(tolerance, "tolerance", error=SweepError, low=1e-6, high=0.1, unit="m")
     if acquisition_time_s is not None:
-        acquisition_time_s = real_scalar(acquisition_time_s, "acquisition_time_s", error=SweepError, unit="s")
-        if not acquisition_time_s > 0:
-            raise SweepError(f"acquisition_time_s must be > 0 s, got {acquisition_time_s:g} s")
+        acquisition_time_s = motion.check_acquisition_time(acquisition_time_s, SweepError)
     distance = system.carm.source_to_orbital_axis if distance is None else real_scalar(
         distance, "distance", error=SweepError, low=1e-3, high=10.0, unit="m")
     obstacles = _patient(patient, system)
