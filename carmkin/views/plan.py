@@ -13,7 +13,7 @@
 
 A reachable plan reports its ``duration`` (:class:`carmkin.model.motion.Duration`): with ``q_current``, the
 time of its joint-by-joint moves at the system's joint speeds (one joint after another, each from rest to
-rest: the order the moves are certified in; the synchronized time, every joint at once, is
+rest: the order the moves are certified in; the whole sequence to ``plan.q``, also when a move is blocked; the synchronized time, every joint at once, is
 ``carmkin.model.motion.move_duration(system.motion, q_current, plan.q)``); unknown, with the reason, without
 ``q_current`` or without joint speeds.
 
