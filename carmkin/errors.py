@@ -243,6 +243,14 @@ class RenderingError(CarmkinError):
     """Rendering is not available (torch/nanodrr/CT missing) or got bad input."""
 
 
+# --- carmkin.model.motion (joint speeds, move durations) ----------------------------------------
+
+
+class MotionError(InvalidParameterError):
+    """A joint speed or acceleration that no machine has (zero, negative, not finite), or a move or path of
+    the wrong shape for the joints' speeds."""
+
+
 # --- carmkin.sweeps (3D sweeps) ------------------------------------------------------------------
 
 

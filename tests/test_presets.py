@@ -16,6 +16,7 @@ from strategies import PRESET
 
 import carmkin
 from carmkin.errors import InvalidParameterError, NearSingularSetupError, PresetError, UnknownPresetError
+from carmkin.model.motion import Motion
 from carmkin.model.bounds import MAX_ANGLE, MAX_LENGTH, MAX_PIXELS, MAX_SETUP_DISTANCE, NEAR_PARALLEL_SIN
 from carmkin.model.table_joints import CHAIN_ORDER, KINDS, standard_joints
 from carmkin.presets import parse_preset, preset_provenance, save_preset, to_toml
@@ -69,6 +70,16 @@ _EDITS = [
     (BUILTIN, "wigwag_min_deg = -10.0", "wigwag_min_deg = 30.0",
      r"\[carm\] wigwag_min_deg = 30 deg > wigwag_max_deg = 10 deg"),
     (BUILTIN, "orbital_max_deg = 95.0", "orbital_max_deg = 1e17", r"orbital_max_deg must be within \[-360, 360\] deg, got 1e\+17"),
+    # joint speeds: positive, every joint of the system, no joint it lacks
+    (BUILTIN, "orbital_speed_deg_s = 1.5833333333333333", "orbital_speed_deg_s = 0.0",
+     r"user\.toml: \[motion\] orbital_speed_deg_s must be within \[5\.72958e-05, 57295\.8\] deg/s, got 0"),
+    (BUILTIN, "vertical_acceleration_mm_s2 = 50.0", "vertical_acceleration_mm_s2 = -50.0",
+     r"\[motion\] vertical_acceleration_mm_s2 must be within \[0\.001, 1e\+06\] mm/s², got -50"),
+    (BUILTIN, "wigwag_speed_deg_s = 5.0", "wigwag_speed_dg_s = 5.0",
+     r"unknown key 'wigwag_speed_dg_s' in \[motion\]; did you mean 'wigwag_speed_deg_s'\?"),
+    (BUILTIN, "wigwag_speed_deg_s = 5.0", "", r"user\.toml: missing key \[motion\] wigwag_speed_deg_s"),
+    (BUILTIN, "[motion]\n", "[motion]\ntable_tilt_speed_deg_s = 3.0\n",
+     r"user\.toml: \[motion\] table_tilt_speed_deg_s: the system has no such joint"),
     # malformed TOML, with the file and line
     (BUILTIN, "orbital_offset_mm = 625.0", "orbital_offset_mm = ", r"user\.toml: malformed TOML: .* line 10"),
     (BUILTIN, "[carm]\n", "[carm]\na1_mm = 1.0\n", r"user\.toml: malformed TOML: .* \(at line 12, column 12\)"),
@@ -143,7 +154,8 @@ def test_every_number_of_the_builtin_presets_has_a_stated_provenance(name):
         assert p.kind in ("source", "assumption"), f"{name}: {key} has no 'source:' or 'assumption:' comment"
         assert p.note, key
         if p.kind == "source":
-            assert re.search(r"dissertation (Table \d\.\d|§\d\.\d)", p.note), f"{key}: {p.note}"
+            # the dissertation, or (joint speeds, which it does not give) a paper found by its PubMed id
+            assert re.search(r"dissertation (Table \d\.\d|§\d\.\d)|PMID \d+", p.note), f"{key}: {p.note}"
 
 
 def test_provenance_names_the_file_each_value_came_from(tmp_path):
@@ -269,7 +281,12 @@ def preset_systems(draw) -> carmkin.CArmSystem:
         floor_height=draw(_lengths()), cart_size=draw(_lengths(True, 3)), column_width=draw(_lengths(True)),
         c_thickness=draw(_lengths(True)), c_depth=draw(_lengths(True)), source_housing=draw(_lengths(True, 3)),
         detector_thickness=draw(_lengths(True)))
-    return carmkin.CArmSystem(carm=carm, setup=setup, table=table, body=body, name=draw(st.text(max_size=20)))
+    system = carmkin.CArmSystem(carm=carm, setup=setup, table=table, body=body, name=draw(st.text(max_size=20)))
+    if draw(st.booleans()):  # joint speeds (and, for some joints, accelerations) in (0, 1e3] per s
+        rate = st.floats(1e-5, 1e3, **_in)
+        system = system.replace(motion=Motion.of(system.joint_names, [draw(rate) for _ in system.joint_names],
+                                                 [draw(st.none() | rate) for _ in system.joint_names]))
+    return system
 
 
 def _assert_close(a, b, where: str = "system") -> None:
@@ -305,3 +322,23 @@ def test_system_from_dict_is_as_strict_as_a_file():
         system_from_dict({"base": "siremobile-iso-c3d", "carm": {"a1_mn": 50.0}})
     system = system_from_dict({"base": "siremobile-iso-c3d", "carm": {"a1_mm": 50.0}})
     assert system.carm.a1 == pytest.approx(0.05) and system.name == "custom"
+
+
+# --- joint speeds ----------------------------------------------------------------------------------------
+@pytest.mark.parametrize("name", carmkin.list_presets())
+def test_builtin_presets_give_every_joint_a_speed_and_an_acceleration(name):
+    system = carmkin.load_preset(name)
+    assert system.motion is not None and system.motion.names == system.joint_names
+    assert all(j.acceleration is not None for j in system.motion.joints)
+
+
+def test_the_orbital_speed_is_the_published_scan():
+    """190° (Table 4.4: ±95°) in the 120 s of an ISO-C-3D scan (Richter et al. 2009): 1.5833°/s."""
+    orbital = carmkin.load_preset("siremobile-iso-c3d").motion["orbital"]
+    assert math.degrees(orbital.speed) == pytest.approx(190 / 120, rel=1e-12)
+
+
+def test_a_preset_without_motion_has_no_speeds(tmp_path):
+    text = BUILTIN[: BUILTIN.index("[motion]")]
+    system = _load(text, tmp_path)
+    assert system.motion is None and "[motion]" not in to_toml(system)

@@ -16,6 +16,7 @@ from carmkin.validation import JOINT_VALUE_LIMIT, plain_floats, unit_slip
 from . import kinematics
 from .bounds import MAX_ANGLE, MAX_LENGTH, check_joint_limits
 from .calibration import Calibration
+from .motion import Motion
 from .params import (
     JOINT_NAMES,
     PRISMATIC,
@@ -52,6 +53,9 @@ class CArmSystem:
     body: BodyGeometry = field(default_factory=BodyGeometry)
     name: str = "custom"
     calibration: Calibration = field(default_factory=Calibration)
+    #: Joint speeds and accelerations (:mod:`carmkin.model.motion`), one per joint in the order of q; None
+    #: when the preset gives none (plans then report no duration).
+    motion: Motion | None = None
 
     def __post_init__(self) -> None:
         for name, kind in (("carm", CArmGeometry), ("setup", TableSetup), ("table", TableGeometry),
@@ -63,15 +67,25 @@ class CArmSystem:
         for joint_range, prismatic in zip(self.joint_ranges, self.prismatic):
             check_joint_limits(joint_range, prismatic, "CArmSystem")
         self.calibration.offsets(self.nq)  # one zero offset per joint, or none
+        if self.motion is not None and (not isinstance(self.motion, Motion) or self.motion.names != self.joint_names):
+            raise InvalidParameterError(
+                f"CArmSystem.motion must be a Motion naming the joints {', '.join(self.joint_names)} in this "
+                f"order, got {getattr(self.motion, 'names', type(self.motion).__name__)}")
 
     def replace(self, **changes) -> "CArmSystem":
-        """A new system with some fields replaced, e.g. ``system.replace(carm=..., setup=...)``."""
+        """A new system with some fields replaced, e.g. ``system.replace(carm=..., setup=...)``. A new
+        ``table`` whose joints differ keeps the joint speeds (:attr:`motion`) by joint name, or none when a
+        joint has none (give ``motion=`` to set them)."""
         names = [f.name for f in dataclasses.fields(self)]
         for key in changes:
             if key not in names:
                 hint = difflib.get_close_matches(key, names, n=1)
                 raise InvalidParameterError(f"CArmSystem.replace: unknown field {key!r}"
                                             + (f"; did you mean {hint[0]!r}?" if hint else f"; fields: {', '.join(names)}"))
+        if "motion" not in changes and self.motion is not None and ("table" in changes):
+            # the joints may change: keep each remaining joint's speed by name (none if a new joint has none)
+            names = dataclasses.replace(self, **changes, motion=None).joint_names
+            changes["motion"] = self.motion.for_joints(names)
         return dataclasses.replace(self, **changes)
 
     # --- joints ---------------------------------------------------------------------------------------

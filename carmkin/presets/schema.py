@@ -20,6 +20,7 @@ from carmkin.model.bounds import (
     MIN_LENGTH,
     check_real,
 )
+from carmkin.model.motion import MAX_RATE, MIN_RATE
 from carmkin.model.params import JOINT_NAMES, PRISMATIC
 from carmkin.model.table_joints import CHAIN_ORDER, KINDS
 
@@ -61,6 +62,21 @@ def _limits(joints: dict[str, bool]) -> dict[str, Rule]:
     return {f"{name}_{side}_{'mm' if prismatic else 'deg'}": _PRISMATIC_LIMIT if prismatic else _REVOLUTE_LIMIT
             for name, prismatic in joints.items() for side in ("min", "max")}
 
+
+def _rates(joints: dict[str, bool]) -> dict[str, Rule]:
+    """``<joint>_speed_mm_s|deg_s`` and ``<joint>_acceleration_mm_s2|deg_s2`` for joints given as {name:
+    prismatic}, within [:data:`~carmkin.model.motion.MIN_RATE`, :data:`~carmkin.model.motion.MAX_RATE`]
+    converted to mm or degrees."""
+    rules = {}
+    for name, prismatic in joints.items():
+        unit, scale = ("mm", MM) if prismatic else ("deg", DEG)
+        rules[f"{name}_speed_{unit}_s"] = Rule("number", f"{unit}/s", MIN_RATE / scale, MAX_RATE / scale)
+        rules[f"{name}_acceleration_{unit}_s2"] = Rule("number", f"{unit}/s²", MIN_RATE / scale, MAX_RATE / scale)
+    return rules
+
+
+#: Every joint a preset may have, {name: prismatic}: the paper's six and a motorized table's.
+ALL_JOINTS = {**dict(zip(JOINT_NAMES, PRISMATIC)), **{name: KINDS[name][0] for name in CHAIN_ORDER}}
 
 #: Every section (dotted for sub-tables; "" is the top level) and the rule of each of its keys.
 SECTIONS: dict[str, dict[str, Rule]] = {
@@ -113,6 +129,7 @@ SECTIONS: dict[str, dict[str, Rule]] = {
         "source_housing_mm": _length(positive=True, size=3),
         "detector_thickness_mm": _length(positive=True),
     },
+    "motion": _rates(ALL_JOINTS),
 }
 
 #: The two alternative key sets of ``[setup]``: the table pose in the source frame, or the DH constants.

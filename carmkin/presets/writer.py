@@ -16,12 +16,13 @@ from carmkin.model.params import PRISMATIC, BodyGeometry, JointRange
 from carmkin.model.system import CArmSystem
 from carmkin.model.table_joints import standard_joints
 
-from .schema import MM
+from .schema import DEG, MM
 
 
 def to_toml(system: CArmSystem) -> str:
-    """The preset text of ``system``: ``[carm]``, ``[setup]`` (DH constants), ``[table]``, ``[body]``, and
-    ``[calibration]`` when the system carries a calibration that is not nominal."""
+    """The preset text of ``system``: ``[carm]``, ``[setup]`` (DH constants), ``[table]``, ``[body]``,
+    ``[calibration]`` when the system carries a calibration that is not nominal, and ``[motion]`` when it has
+    joint speeds."""
     import tomlkit  # only here: loading does not need it
 
     if not isinstance(system, CArmSystem):
@@ -46,10 +47,12 @@ def to_toml(system: CArmSystem) -> str:
         table_keys["joints"] = _table_joints(table.joints)
     body = {f"{f.name}_mm": [v / MM for v in value] if isinstance(value, tuple) else value / MM
             for f in fields(BodyGeometry) for value in (getattr(system.body, f.name),)}
-    sections = {"name": system.name, "carm": carm_keys, "setup": setup_keys, "table": table_keys, "body": body}
+    document = {"name": system.name, "carm": carm_keys, "setup": setup_keys, "table": table_keys, "body": body}
     if not system.calibration.is_nominal:
-        sections["calibration"] = _calibration(system)
-    return tomlkit.dumps(sections)
+        document["calibration"] = _calibration(system)
+    if system.motion is not None:
+        document["motion"] = _motion(system)
+    return tomlkit.dumps(document)
 
 
 def save_preset(system: CArmSystem, path: str | Path) -> Path:
@@ -92,3 +95,19 @@ def _table_joints(joints) -> dict:
     for joint in joints:
         keys.update(_limits(joint.range, joint.prismatic))
     return keys
+
+
+def _motion(system: CArmSystem) -> dict[str, float]:
+    """``[motion]``: each joint's speed and (when known) acceleration in mm or degrees per s and s²."""
+    keys = {}
+    for joint, prismatic in zip(system.motion.joints, system.prismatic):
+        unit, convert = ("mm", _mm) if prismatic else ("deg", _deg)
+        keys[f"{joint.name}_speed_{unit}_s"] = convert(joint.speed)
+        if joint.acceleration is not None:
+            keys[f"{joint.name}_acceleration_{unit}_s2"] = convert(joint.acceleration)
+    return keys
+
+
+def _deg(radians: float) -> float:
+    """Degrees by dividing by the loader's factor (π/180), so that the loader's product gives the value back."""
+    return radians / DEG
