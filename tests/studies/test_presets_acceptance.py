@@ -207,3 +207,27 @@ def test_drr_bead_is_drawn_where_p_projects_it(preset):
     beaded = drr.Renderer(system, volume.with_fiducials(bead_ct), T_table_ct, scale=scale, n_samples=200, device="cpu")
     m = imaging.projection_from_pose(plain.K, T) @ np.r_[bead, 1.0]
     assert np.linalg.norm(drr.blob_centre(beaded.render(T), plain.render(T)) - m[:2] / m[2]) <= DRR_BEAD_PX
+
+
+def test_pose_ik_closed_form_at_rest_and_qp_with_the_table_moved(preset):
+    """Poses of collision-free in-range configurations: with the extra table joints at rest the closed form
+    solves them (single-axis on a motorized table, the 6-DOF one otherwise), exactly; with them moved, the QP."""
+    from carmkin import qp_ik
+    from carmkin.transforms import pose_error
+
+    system, _ = preset
+    Q = acceptance.in_range_configurations(system, 6, seed=3)
+    extra = [i for i, n in enumerate(system.joint_names) if n.startswith("table_") and n != "table_translation"]
+    Q[:3, extra] = 0.0
+    world = World(system)
+    for k, q in enumerate(Q):
+        if world.clearance(q[None])[0] < 0.02:
+            continue
+        result = qp_ik.solve(system, system.fk(q))
+        assert result.success, k
+        position, angle = pose_error(system.fk(result.q), system.fk(q))
+        options = qp_ik.QPIKOptions()  # the QP's own tolerances; the closed form is exact
+        assert position <= (1e-12 if k < 3 else options.position_tolerance), k
+        assert angle <= (1e-12 if k < 3 else options.angle_tolerance), k
+        if k < 3:
+            assert result.path != qp_ik.Path.QP, k
