@@ -225,6 +225,8 @@ def joints(system, fam: Families, index, lam, q_hold) -> np.ndarray:
     q[:, nq - 3] = values[:, 3]
     q[:, nq - 2] = theta[:, 1]
     q[:, nq - 1] = theta[:, 2]
+    locked = system.upper == system.lower  # a locked joint is its value, not that value ± round-off
+    q[:, locked] = system.lower[locked]
     return q
 
 
