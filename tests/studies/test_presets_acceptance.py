@@ -231,3 +231,18 @@ def test_pose_ik_closed_form_at_rest_and_qp_with_the_table_moved(preset):
         assert angle <= (1e-12 if k < 3 else options.angle_tolerance), k
         if k < 3:
             assert result.path != qp_ik.Path.QP, k
+
+
+def test_perpendicular_view_of_a_segment_is_planned(preset):
+    """A 6 cm segment through the isocentre, oblique: the planned beam passes through its midpoint, at right
+    angles to it, clear of the patient."""
+    from carmkin.views import plan_perpendicular
+
+    system, patient = preset
+    a, b = np.array([0.0, 0.02, -0.02]), np.array([0.03, 0.0, 0.03])
+    plan = plan_perpendicular(system, a, b, patient)
+    assert plan.success
+    axis = system.fk(plan.q)[:3, 2]
+    assert abs(axis @ (b - a)) / np.linalg.norm(b - a) <= BEAM_TOLERANCE
+    assert _beam_errors(system, plan.q, 0.5 * (a + b), axis)[0] <= BEAM_TOLERANCE
+    assert World(system, patient.obstacles()).clearance(plan.q[None])[0] >= carmkin.DEFAULT_MARGIN - CLEARANCE_ACCURACY
