@@ -144,6 +144,11 @@ def test_a_setup_section_replaces_the_bases_whole_and_forms_do_not_mix(tmp_path)
 
 
 # --- provenance -----------------------------------------------------------------------------------------
+#: What a "source:" comment may cite: the dissertation (a Table or a §), a vendor dose report (DICOM RDSR) of
+#: the pyskindose wheel by file name, or Sheth et al., Med Phys 2020 (the Cios Spin's published ranges).
+CITABLE = r"dissertation (Table \d\.\d|§\d\.\d)|pyskindose RDSR \w+\.dcm|Sheth et al\. 2020 \""
+
+
 @pytest.mark.parametrize("name", carmkin.list_presets())
 def test_every_number_of_the_builtin_presets_has_a_stated_provenance(name):
     provenance = preset_provenance(name)
@@ -154,8 +159,9 @@ def test_every_number_of_the_builtin_presets_has_a_stated_provenance(name):
         assert p.kind in ("source", "assumption"), f"{name}: {key} has no 'source:' or 'assumption:' comment"
         assert p.note, key
         if p.kind == "source":
-            # the dissertation, or (joint speeds, which it does not give) a paper found by its PubMed id
-            assert re.search(r"dissertation (Table \d\.\d|§\d\.\d)|PMID \d+", p.note), f"{key}: {p.note}"
+            # the dissertation, a cited public document, or (joint speeds, which it does not give) a paper found
+            # by its PubMed id
+            assert re.search(CITABLE + r"|PMID \d+", p.note), f"{key}: {p.note}"
 
 
 def test_provenance_names_the_file_each_value_came_from(tmp_path):

@@ -66,11 +66,13 @@ def run(args: argparse.Namespace) -> int:
     print(f"XA ({code.upper()}): Positioner Primary Angle {primary:.4f}° ({'LAO' if primary >= 0 else 'RAO'}), "
           f"Secondary Angle {secondary:.4f}° ({'CRA' if secondary >= 0 else 'CAU'}), detector rotation {rotation:.4f}°")
     g = dicom.isocenter_geometry(system, q, convention=args.positioner_convention)
-    print(f"Isocenter Reference System: positioner {g.positioner_primary_deg:.4f}°, {g.positioner_secondary_deg:.4f}°, "
-          f"detector rotation {g.detector_rotation_deg:.4f}°; table X/Y/Z to isocentre "
+    print(f"Isocenter Reference System: positioner {round(g.positioner_primary_deg, 4) + 0.0:.4f}°, "
+          f"{round(g.positioner_secondary_deg, 4) + 0.0:.4f}°, "
+          f"detector rotation {round(g.detector_rotation_deg, 4) + 0.0:.4f}°; table X/Y/Z to isocentre "
           + ", ".join(f"{round(v, 3) + 0.0:.3f}" for v in g.table_position_mm)
-          + f" mm; table rotation {g.table_rotation_deg:.4f}°, head tilt {g.table_head_tilt_deg:.4f}°, "
-          f"cradle tilt {g.table_cradle_tilt_deg:.4f}°; source to isocentre {g.source_to_isocenter_mm:.3f} mm")
+          + f" mm; table rotation {round(g.table_rotation_deg, 4) + 0.0:.4f}°, "
+          f"head tilt {round(g.table_head_tilt_deg, 4) + 0.0:.4f}°, "
+          f"cradle tilt {round(g.table_cradle_tilt_deg, 4) + 0.0:.4f}°; source to isocentre {g.source_to_isocenter_mm:.3f} mm")
     table = dicom.table_position(system, q)
     for name, value in table.items():
         print(f"{name}: {round(value, 3) + 0.0:.3f} mm")

@@ -256,6 +256,10 @@ class TableGeometry:
             raise InvalidParameterError(f"TableGeometry.joints must be distinct TableJoint objects, got {names}")
 
 
+#: Where a stand may be fixed (:attr:`BodyGeometry.mount`).
+MOUNTS = ("floor", "ceiling")
+
+
 @dataclass(frozen=True)
 class BodyGeometry:
     """Extents of the C-arm's collision/visual primitives that the kinematics does not fix (m).
@@ -268,6 +272,11 @@ class BodyGeometry:
         c_thickness: radial thickness of the C; c_depth: its extent along the orbital axis.
         source_housing: box extents of the X-ray tube housing (m), behind the focal spot.
         detector_thickness: thickness of the detector housing behind the detector plane.
+        mount: where the stand is fixed: ``"floor"`` (the cart stands on the floor, the column rises from it)
+            or ``"ceiling"`` (an angiography stand hanging from a ceiling carriage: the cart box sits under the
+            ceiling and the column rises from the arm to it). Only the bodies change; the chain is the same.
+        ceiling_height: ceiling height in the C-arm base frame (m, above the vertical axis origin); used
+            when ``mount == "ceiling"``.
     """
 
     floor_height: float = -1.0
@@ -277,14 +286,23 @@ class BodyGeometry:
     c_depth: float = 0.14
     source_housing: tuple[float, float, float] = (0.24, 0.24, 0.22)
     detector_thickness: float = 0.15
+    mount: str = "floor"
+    ceiling_height: float = 2.0
 
     def __post_init__(self) -> None:
         owner = "BodyGeometry"
+        if self.mount not in MOUNTS:
+            raise InvalidParameterError(f"{owner}.mount must be one of {', '.join(map(repr, MOUNTS))}, got {self.mount!r}")
         object.__setattr__(self, "floor_height", check_length(f"{owner}.floor_height", self.floor_height))
+        object.__setattr__(self, "ceiling_height", check_length(f"{owner}.ceiling_height", self.ceiling_height))
         for name in ("column_width", "c_thickness", "c_depth", "detector_thickness"):
             object.__setattr__(self, name, check_length(f"{owner}.{name}", getattr(self, name), positive=True))
         for name in ("cart_size", "source_housing"):
             object.__setattr__(self, name, _check_lengths(f"{owner}.{name}", getattr(self, name), positive=True))
+        if self.mount == "ceiling" and self.ceiling_height - self.cart_size[2] <= 0:
+            raise InvalidParameterError(
+                f"{owner}.ceiling_height = {self.ceiling_height:g} m leaves no room for the ceiling carriage "
+                f"(cart_size z = {self.cart_size[2]:g} m) above the arm: need ceiling_height > cart_size z")
 
 
 def _check_lengths(what: str, values, positive: bool = False) -> tuple[float, float, float]:

@@ -63,6 +63,8 @@ def xacro_arguments(system) -> dict[str, str]:
         c_depth=_fmt(body.c_depth),
         source_housing=_fmt(*body.source_housing),
         detector_thickness=_fmt(body.detector_thickness),
+        ceiling_mount=str(body.mount == "ceiling"),
+        ceiling_height=_fmt(body.ceiling_height),
         c_segments=str(C_SEGMENTS),
     )
     return args

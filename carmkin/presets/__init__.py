@@ -299,8 +299,9 @@ def _system(data: dict, default_name: str) -> CArmSystem:
         top_size=_mm3(t["top_size_mm"], "top_size_mm") if "top_size_mm" in t else table_defaults.top_size,
         top_center=_mm3(t["top_center_mm"], "top_center_mm") if "top_center_mm" in t else table_defaults.top_center,
     )
-    body = BodyGeometry(**{key[: -len("_mm")]: _mm3(value, key) if isinstance(value, list) else value * _MM
-                            for key, value in data.get("body", {}).items()})
+    body = BodyGeometry(**{key.removesuffix("_mm"): value if isinstance(value, str) else
+                           _mm3(value, key) if isinstance(value, list) else value * _MM
+                           for key, value in data.get("body", {}).items()})
     system = CArmSystem(carm=carm, setup=setup, table=table, body=body, name=data.get("name", default_name))
     if "calibration" in data:
         system = system.replace(calibration=_calibration(data["calibration"], system))

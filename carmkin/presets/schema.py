@@ -128,6 +128,8 @@ SECTIONS: dict[str, dict[str, Rule]] = {
         "c_depth_mm": _length(positive=True),
         "source_housing_mm": _length(positive=True, size=3),
         "detector_thickness_mm": _length(positive=True),
+        "mount": _STRING,
+        "ceiling_height_mm": _length(),
     },
     "motion": _rates(ALL_JOINTS),
 }

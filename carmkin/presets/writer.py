@@ -45,7 +45,8 @@ def to_toml(system: CArmSystem) -> str:
                   "top_center_mm": [v / MM for v in table.top_center]}
     if table.joints:
         table_keys["joints"] = _table_joints(table.joints)
-    body = {f"{f.name}_mm": [v / MM for v in value] if isinstance(value, tuple) else value / MM
+    body = {f.name if isinstance(value, str) else f"{f.name}_mm":
+            value if isinstance(value, str) else [v / MM for v in value] if isinstance(value, tuple) else value / MM
             for f in fields(BodyGeometry) for value in (getattr(system.body, f.name),)}
     document = {"name": system.name, "carm": carm_keys, "setup": setup_keys, "table": table_keys, "body": body}
     if not system.calibration.is_nominal:
