@@ -67,11 +67,11 @@ def rest_vector(data: dict, frontal, lateral, label: str) -> np.ndarray:
     """The biplane rest configuration (nq,) of ``[rest.*]`` (m, rad); joints not named take
     :func:`~carmkin.model.biplane.default_rest`."""
     rest = data.get("rest", {})
-    k = frontal.nq - CARM_JOINTS
+    k, k_lateral = frontal.nq - CARM_JOINTS, lateral.nq - CARM_JOINTS  # (equal tables: checked by Biplane)
     f, lat = default_rest(frontal), default_rest(lateral)
-    named = [(rest.get("table", {}), "table", frontal, range(k), (f, lat)),
+    named = [(rest.get("table", {}), "table", frontal, range(k), (f, lat) if k == k_lateral else (f,)),
              (rest.get("frontal", {}), "frontal", frontal, range(k, frontal.nq), (f,)),
-             (rest.get("lateral", {}), "lateral", lateral, range(k, lateral.nq), (lat,))]
+             (rest.get("lateral", {}), "lateral", lateral, range(k_lateral, lateral.nq), (lat,))]
     for section, where, system, indices, targets in named:
         known = set()
         for j in indices:
@@ -85,7 +85,7 @@ def rest_vector(data: dict, frontal, lateral, label: str) -> np.ndarray:
             if key not in known:
                 raise PresetError(f"{label}: [rest.{where}] {key}: this biplane has no such joint (its {where} "
                                   f"joints: {', '.join(sorted(known))})")
-    return np.concatenate((f, lat[k:]))
+    return np.concatenate((f, lat[k_lateral:]))
 
 
 def assemble(data: dict, label: str, frontal, lateral) -> Biplane:
