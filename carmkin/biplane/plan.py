@@ -80,7 +80,7 @@ def lateral_view(frontal: View, angle_deg: float = 90.0, position="HFS", name: s
     superior = _patient_frame(position)[:3, 2]
     axis = superior - (superior @ d) * d
     if np.linalg.norm(axis) < 1e-6:
-        raise ViewError(f"the frontal view {frontal.name or tuple(np.round(d, 3))} runs along the patient's long "
+        raise ViewError(f"the frontal view {frontal.name or np.round(d, 3).tolist()} runs along the patient's long "
                         "axis: turning it about that axis is undefined; give the lateral view itself")
     axis /= np.linalg.norm(axis)
     turned = math.cos(angle) * d + math.sin(angle) * np.cross(axis, d)  # Rodrigues' formula, axis ⟂ d
