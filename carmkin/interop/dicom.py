@@ -7,9 +7,12 @@ Frames (DICOM PS3.3 C.8.19.6.13.1 and PS3.17 Z / FFF.1.2):
 - **Table coordinate system** (Ot, Xt, Yt, Zt): +Xt to the table's left, +Yt down, +Zt to the table's head —
   the toolkit's table frame 0 with the table head at +Z0; the Table Reference Point Ot is its origin.
 - **Isocenter coordinate system** (O, X, Y, Z), fixed to the equipment: with all table angles 0 its axes
-  are the table's (X left, Y down, Z head). For the mobile C-arm we fix it to the C-arm base: Y = down the
-  vertical column (−Z of DH frame 2), X = the horizontal arm direction (+Y2), Z = X × Y (−X2); for the
-  preset's setup these are the table axes. A mobile, non-isocentric C-arm has no fixed isocentre: each image
+  are the table's (X left, Y down, Z head). We fix it to the C-arm base (DH frame 2) with the table's axes at
+  rest (all joints 0), :func:`isocenter_in_frame2`: for a mobile C-arm beside the table (the siremobile and
+  cios-spin presets) Y = down the vertical column (−Z2), X = the horizontal arm direction (+Y2), Z = X × Y
+  (−X2); for an angiography stand at the head end (angio-floor, angio-ceiling), whose arm lies along the
+  table, X = across the table (−X2), Y = down, Z = towards the stand (−Y2). A mobile, non-isocentric C-arm has
+  no fixed isocentre: each image
   carries its own, the point of the principal axis at the source-to-isocentre distance ``ISO`` from the
   source (default: the orbital offset l2, the preset's "beam centre").
 - **Positioner coordinate system** (Op = O, Xp, Yp, Zp): Yp from the isocentre to the source, Xp along the
@@ -59,8 +62,6 @@ from carmkin.transforms import inverse
 #: Our source axes (columns x, y, z) in positioner axes (Xp, Yp, Zp): x = −Xp, y = −Zp, z = −Yp.
 SOURCE_IN_POSITIONER = np.array([[-1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, -1.0, 0.0]])
 
-#: Isocentre axes (columns X, Y, Z) in DH frame 2 of the chain: X = Y2, Y = −Z2, Z = −X2.
-ISOCENTER_IN_FRAME2 = np.array([[0.0, 0.0, -1.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
 
 #: The two readings of the signs of Ap2 and Ap3 (PS3.3 C.8.19.6.13.1.2), as the signs applied to the
 #: angles before the rotations of :func:`positioner_matrix` (the ``"beam"`` matrices):
@@ -247,10 +248,17 @@ def _configuration(system, q, name: str = "q") -> np.ndarray:
     return q
 
 
+def isocenter_in_frame2(system) -> np.ndarray:
+    """Isocentre axes (3, 3, columns X, Y, Z) in DH frame 2 of the chain: the table axes at rest (all joints 0)
+    seen from frame 2, so that the table angles are 0 at rest. For the mobile presets X = Y2, Y = −Z2, Z = −X2;
+    for the angiography presets (arm along the table) X = −X2, Y = −Z2, Z = −Y2."""
+    return system.dh_frames(np.zeros(_system(system).nq))[1][:3, :3].T
+
+
 def equipment_axes(system, q) -> np.ndarray:
     """Isocentre axes (3, 3, columns X, Y, Z) in the table frame, fixed to the C-arm base (DH frame 2)."""
     q = _configuration(system, q)
-    return system.dh_frames(q)[1][:3, :3] @ ISOCENTER_IN_FRAME2
+    return system.dh_frames(q)[1][:3, :3] @ isocenter_in_frame2(system)
 
 
 def isocenter_frame(system, q, source_to_isocenter: float | None = None) -> np.ndarray:

@@ -49,13 +49,19 @@ def random_system(rng: np.random.Generator, base: CArmSystem) -> CArmSystem:
     return base.replace(carm=random_geometry(rng, base.carm), setup=TableSetup.from_pose(random_pose(rng)))
 
 
+#: Width (m or rad) a locked joint's range counts for in :func:`random_configurations`, so that samples beyond
+#: the limits still move it (the chain is checked there too).
+LOCKED_SPAN = 0.2
+
+
 def random_configurations(rng: np.random.Generator, system: CArmSystem, n: int, beyond: float = 0.25) -> np.ndarray:
     """``n`` configurations (n, nq) uniform over the joint ranges widened by ``beyond`` of their span each side.
 
-    Revolute joints are drawn over at least a full turn so that every angle is exercised.
+    Revolute joints are drawn over at least a full turn so that every angle is exercised; a locked joint
+    (range of zero width, e.g. an angiography stand's vertical travel) counts as :data:`LOCKED_SPAN` wide.
     """
     lower, upper = system.lower, system.upper
-    span = upper - lower
+    span = np.maximum(upper - lower, LOCKED_SPAN)  # a locked joint (min = max) is still exercised beyond it
     lower, upper = lower - beyond * span, upper + beyond * span
     revolute = ~np.array(system.prismatic)
     lower = np.where(revolute, np.minimum(lower, -np.pi), lower)

@@ -118,10 +118,7 @@ def reachable(system: CArmSystem, T: np.ndarray, model: str, *, options: QPIKOpt
 
     ``bound``: first the necessary condition :func:`carmkin.studies.reach_bound.cannot_reach` (no solve where
     it proves the target out of reach: the same answer, found in well under a millisecond)."""
-    free = MODELS[model]
-    missing = set(free) - set(system.joint_names)
-    if missing:
-        raise TableWorkspaceError(f"model {model!r} needs joints {sorted(missing)} the system lacks")
+    free = free_joints(system, model)
     if bound and cannot_reach(system, T, free):
         return False
     target = axis_target(T)
@@ -129,6 +126,18 @@ def reachable(system: CArmSystem, T: np.ndarray, model: str, *, options: QPIKOpt
         return any(_branch_reaches(system, target, q, options) for q in _five_dof_seeds(system, T))
     result = solve(system, target, options=options, free=free, random_seeds=random_seeds, rng_seed=rng_seed)
     return result.success
+
+
+def free_joints(system: CArmSystem, model: str) -> tuple[str, ...]:
+    """The joints ``model`` frees on ``system``: :data:`MODELS`'s, except that ``"all"`` is every table joint
+    the system has (an angiography table has no rotation); a model whose joints the system lacks is refused."""
+    free = MODELS[model]
+    if model == "all":
+        free = tuple(name for name in free if name in system.joint_names)
+    missing = set(free) - set(system.joint_names)
+    if missing:
+        raise TableWorkspaceError(f"model {model!r} needs joints {sorted(missing)} the system lacks")
+    return free
 
 
 def _branch_reaches(system: CArmSystem, target: AxisTarget, q: np.ndarray, options: QPIKOptions) -> bool:
@@ -192,9 +201,7 @@ def run_study(system: CArmSystem, models=tuple(MODELS), n: int = 200, seed: int 
     if unknown:
         raise TableWorkspaceError(f"unknown model(s) {sorted(unknown)}; known: {', '.join(MODELS)}")
     for model in models:  # refuse a model the system cannot run before any solve
-        missing = set(MODELS[model]) - set(system.joint_names)
-        if missing:
-            raise TableWorkspaceError(f"model {model!r} needs joints {sorted(missing)} the system lacks")
+        free_joints(system, model)
     qs = desired_configurations(system, n, seed, options.safety_margin)
     poses = system.fk(qs)
     workers = default_workers() if workers is None else int(workers)

@@ -15,6 +15,12 @@ with ``τ = Rz(−θ2) (EK)⁻¹ t`` and ``G = Rz(−θ2) (EK)ᵀ e_z``. The fir
 (s, d0): a line ``(s, d0) = P0 + λ v``; d3 and d1 are affine in λ. Intersecting the ranges of s, d0, d1,
 d3 gives each (θ2, σ) family its interval of λ — the distance is searched exactly, not sampled, and the
 singular poses of the pose IK (orbital axis ∥ wigwag) are not special here. Lengths in m, angles in rad.
+
+A stand whose vertical and horizontal travels are locked (an angiography C-arm: min = max) leaves the line
+one point, and only the wigwag values that put it there: for an isocentric C-arm (a1 = a2 = 0) the equation
+reads, turned back by θ2, ``t − (s − L) z − d0 g = Rz(θ2) (0, M + d3, d1)`` in the base frame — the
+isocentre on the circle of radius M + d3 at height d1 — a line in (s, d0) met with a circle:
+:func:`locked_theta2` gives its (at most two) wigwag values in closed form, added to the samples.
 """
 
 from __future__ import annotations
@@ -156,6 +162,45 @@ def families(system, targets, directions, theta2, frame, q_ref, distance_range) 
     span5 = max(upper[j5] - lower[j5], 1e-9)
     theta = np.stack((np.broadcast_to(th2[..., None], c5.shape), theta4, theta5), axis=-1)
     return Families(theta, base, slope, lo, hi, e4 / span4 + e5 / span5)
+
+
+def locked_theta2(system, targets, directions, frame) -> np.ndarray | None:
+    """(N, 2) the wigwag values (rad, NaN where none) at which an isocentric C-arm whose vertical and horizontal
+    joints are locked (range width within :data:`~carmkin.model.params.JOINT_RANGE_TOLERANCE`) puts the beam
+    ``directions`` (N, 3) through ``targets`` (N, 3) (table frame, the held table joints in ``frame``, see
+    :func:`families`); None for any other system (its line keeps a free λ: the samples find it). Where the
+    beam and the table axis are both level in the base frame, or the isocentre's circle meets the line
+    everywhere, the values are NaN: the samples cover that one-parameter family."""
+    carm = system.carm
+    lower, upper = system.lower, system.upper
+    j1, j2, j3 = system.nq - 5, system.nq - 4, system.nq - 3
+    if not carm.is_isocentric or max(upper[j1] - lower[j1], upper[j3] - lower[j3]) > JOINT_RANGE_TOLERANCE:
+        return None
+    d1, d3 = 0.5 * (lower[j1] + upper[j1]), 0.5 * (lower[j3] + upper[j3])
+    B, o = frame[:3, :3], frame[:3, 3]
+    t, z, g = (targets - o) @ B, directions @ B, np.broadcast_to(B[2], targets.shape)
+    # w(s', d0) = t − s' z − d0 g with w_z = d1: (s', d0) = P + μ v on that line, then |w_xy|² = (M + d3)².
+    nz = np.stack((z[:, 2], g[:, 2]), axis=1)
+    nn = np.einsum("ij,ij->i", nz, nz)
+    ok = nn > DEGENERATE ** 2
+    nn = np.where(ok, nn, 1.0)
+    P = ((t[:, 2] - d1) / nn)[:, None] * nz
+    v = np.stack((-nz[:, 1], nz[:, 0]), axis=1) / np.sqrt(nn)[:, None]
+    w0 = t - P[:, :1] * z - P[:, 1:] * g
+    wv = -(v[:, :1] * z + v[:, 1:] * g)
+    a = np.einsum("ij,ij->i", wv[:, :2], wv[:, :2])
+    b = 2.0 * np.einsum("ij,ij->i", w0[:, :2], wv[:, :2])
+    c = np.einsum("ij,ij->i", w0[:, :2], w0[:, :2]) - (carm.arm_length + d3) ** 2
+    ok &= a > DEGENERATE ** 2
+    a = np.where(ok, a, 1.0)
+    disc = b * b - 4.0 * a * c
+    ok &= disc >= 0.0
+    root = np.sqrt(np.where(ok, disc, 0.0))
+    mu = (-b[:, None] + np.stack((root, -root), axis=1)) / (2.0 * a[:, None])  # (N, 2)
+    w = w0[:, None, :] + mu[..., None] * wv[:, None, :]
+    theta2 = np.arctan2(-w[..., 0], w[..., 1])
+    theta2, excess = _representative(theta2, lower[j2], upper[j2], 0.5 * (lower[j2] + upper[j2]))
+    return np.where(ok[:, None] & (excess == 0), theta2, np.nan)
 
 
 def base_frame(system, q_hold) -> np.ndarray:

@@ -231,7 +231,8 @@ class _State:
 def _chunk(ctx: Context, targets, directions, distance_range, x_axes, index, state: _State) -> _Chunk:
     """The families of cells ``index`` (global), their scores on :data:`DISTANCE_SAMPLES` distances, and what
     the reasons need (into ``state``). A cell with a fixed roll (a finite row of ``x_axes``) gets the wigwag
-    values of that roll instead of the samples, and only the families that have it."""
+    values of that roll instead of the samples, and only the families that have it. A stand with locked vertical
+    and horizontal joints also gets its exact wigwag values (:func:`closed_form.locked_theta2`)."""
     system, world = ctx.system, ctx.world
     targets, directions, distance_range = targets[index], directions[index], distance_range[index]
     x_axes = x_axes[index]
@@ -251,6 +252,9 @@ def _chunk(ctx: Context, targets, directions, distance_range, x_axes, index, sta
             theta2[~fixed, :len(ctx.theta2)] = ctx.theta2
             theta2[fixed, :roots.shape[1]] = roots
             state.no_roll[index[fixed][np.all(np.isnan(roots), axis=1)]] = True
+        locked = closed_form.locked_theta2(system, targets, directions, frame)
+        if locked is not None:  # the exact wigwag values of a locked stand, beside the samples
+            theta2 = np.concatenate((np.broadcast_to(theta2, (N, np.shape(theta2)[-1])), locked), axis=1)
         with np.errstate(invalid="ignore"):  # NaN-padded wigwag values make empty families
             fam = closed_form.families(system, targets, directions, theta2, frame, ctx.q_ref, distance_range)
             if fixed.any():

@@ -48,7 +48,9 @@ def test_unknown_model_and_missing_joints_raise():
     with pytest.raises(tw.TableWorkspaceError):
         tw.run_study(MOTORIZED, ("floor",), n=1)
     with pytest.raises(tw.TableWorkspaceError, match="lacks"):
-        tw.reachable(carmkin.load_preset("siremobile-iso-c3d"), np.eye(4), "all")
+        tw.reachable(carmkin.load_preset("siremobile-iso-c3d"), np.eye(4), "translations")
+    # "all" frees every table joint the system has: an angiography table has no rotation
+    assert set(tw.free_joints(carmkin.load_preset("angio-floor"), "all")) == set(tw.MODELS["all"]) - {"table_rotation"}
     with pytest.raises(tw.TableWorkspaceError):
         tw.desired_configurations(MOTORIZED, 0)
 

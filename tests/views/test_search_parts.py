@@ -13,6 +13,7 @@ from strategies import configurations, motorized_systems, systems, unit_vectors
 import carmkin
 from carmkin.errors import ViewError
 from carmkin.patient import ParametricPatient
+from carmkin.studies.acceptance import family
 from carmkin.world import World
 from carmkin.world.tolerances import DISTANCE_ACCURACY
 from carmkin.views import View, closed_form, reach_map, search
@@ -38,7 +39,8 @@ def test_clearances_are_the_minimum_over_all_pairs(name):
     d, pair = world.nearest(Q)
     full = np.array([scene.distances(q=q) for q in Q])
     np.testing.assert_allclose(d, full.min(axis=1), rtol=0, atol=SAME_CALL)
-    np.testing.assert_array_equal(pair, full.argmin(axis=1))
+    # the pair named is a nearest one (two C segments may tie to the table: angio-ceiling's, 1e-17 m apart)
+    np.testing.assert_allclose(full[np.arange(len(Q)), pair], full.min(axis=1), rtol=0, atol=SAME_CALL)
     # With a stop, a distance below it is some pair's own distance; one above it is still the minimum.
     stop = np.median(d)
     d_stop, pair_stop = world.nearest(Q, stop_below=stop)
@@ -98,7 +100,12 @@ def _claimed(system, target, direction, margin):
     return int(inside.sum()), len(inside)
 
 
-@pytest.mark.parametrize("name", carmkin.list_presets())
+#: The mobile C-arms beside the table, whose C touches the table in the steep views below (an angiography
+#: stand at the head end keeps its C clear of the table there).
+MOBILE = [name for name in carmkin.list_presets() if family(carmkin.load_preset(name)) == "mobile"]
+
+
+@pytest.mark.parametrize("name", MOBILE)
 def test_regions_only_skip_configurations_that_touch(name):
     """Views of the table origin that touch (steep LAO with tilt, the C-arc against the table): the regions
     claim many candidates, and every one touches."""
