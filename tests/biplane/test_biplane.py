@@ -312,3 +312,20 @@ def test_a_configuration_in_mm_and_degrees_is_caught_by_the_planes_unit_check():
     with pytest.raises(carmkin.InvalidConfigurationError, match=r"\(table_translation\) = 90 m is not a C-arm joint "
                                                                 r"value.*given in mm\?"):
         BIPLANE.fk(np.full(15, 90.0))
+
+
+def test_each_plane_is_measured_against_table_floor_and_patient():
+    from carmkin.patient import ParametricPatient
+    from carmkin.world import World
+
+    patient = ParametricPatient.on_table(BIPLANE.frontal)
+    world = BiplaneWorld(BIPLANE, patient)
+    rng = np.random.default_rng(5)
+    for q in configurations(BIPLANE, rng.random((10, BIPLANE.nq))):
+        q_f, q_l = BIPLANE.planes_q(q)
+        got = world.clearance(q)
+        assert got.frontal == pytest.approx(World(BIPLANE.frontal, patient).distances(q=q_f).min(), abs=SAME_DISTANCE)
+        assert got.lateral == pytest.approx(World(BIPLANE.lateral, patient).distances(q=q_l).min(), abs=SAME_DISTANCE)
+        assert got.minimum == min(got.planes, got.frontal, got.lateral)
+    with pytest.raises(BiplaneError, match="biplane must be a carmkin.model.biplane.Biplane"):
+        BiplaneWorld(BIPLANE.frontal)
