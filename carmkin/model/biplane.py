@@ -127,8 +127,11 @@ class Biplane:
 
     def check(self, q, name: str = "q") -> np.ndarray:
         """``q`` (nq,) or (N, nq) as a finite float array, or :class:`BiplaneError` naming ``name``."""
-        q = np.asarray(q, dtype=float) if isinstance(q, np.ndarray) else q
-        shape = (self.nq,) if np.ndim(q) <= 1 else (None, self.nq)
+        try:
+            batch = np.ndim(q) > 1
+        except ValueError:  # ragged nesting: real_array names it
+            batch = False
+        shape = (None, self.nq) if batch else (self.nq,)
         return real_array(q, name, shape, error=BiplaneError, limit=JOINT_VALUE_LIMIT, unit="m, rad")
 
     def planes_q(self, q) -> tuple[np.ndarray, np.ndarray]:
@@ -141,13 +144,14 @@ class Biplane:
         """The biplane q from each plane's joint vector; their table joints must agree (to
         :data:`~carmkin.model.params.JOINT_RANGE_TOLERANCE`): the table is one."""
         k = self.table_nq
-        f = real_array(q_frontal, "q_frontal", (None,) * max(1, np.ndim(q_frontal)), error=BiplaneError,
-                       limit=JOINT_VALUE_LIMIT, unit="m, rad")
-        lat = real_array(q_lateral, "q_lateral", (None,) * max(1, np.ndim(q_lateral)), error=BiplaneError,
-                         limit=JOINT_VALUE_LIMIT, unit="m, rad")
+        f = real_array(q_frontal, "q_frontal", None, error=BiplaneError, limit=JOINT_VALUE_LIMIT, unit="m, rad")
+        lat = real_array(q_lateral, "q_lateral", None, error=BiplaneError, limit=JOINT_VALUE_LIMIT, unit="m, rad")
         for value, name, system in ((f, "q_frontal", self.frontal), (lat, "q_lateral", self.lateral)):
-            if value.shape[-1] != system.nq:
-                raise BiplaneError(f"{name} must hold {system.nq} joints, got {value.shape[-1]}")
+            if value.ndim not in (1, 2) or value.shape[-1] != system.nq:
+                raise BiplaneError(f"{name} must be ({system.nq},) or (N, {system.nq}) joint values (m, rad), got "
+                                   f"shape {value.shape}")
+        if f.shape[:-1] != lat.shape[:-1]:
+            raise BiplaneError(f"q_frontal and q_lateral must hold as many configurations, got {f.shape} and {lat.shape}")
         gap = np.abs(f[..., :k] - lat[..., :k])
         if np.any(gap > JOINT_RANGE_TOLERANCE):
             j = int(np.argwhere(gap > JOINT_RANGE_TOLERANCE)[0][-1])

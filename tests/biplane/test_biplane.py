@@ -329,3 +329,24 @@ def test_each_plane_is_measured_against_table_floor_and_patient():
         assert got.minimum == min(got.planes, got.frontal, got.lateral)
     with pytest.raises(BiplaneError, match="biplane must be a carmkin.model.biplane.Biplane"):
         BiplaneWorld(BIPLANE.frontal)
+
+
+@pytest.mark.parametrize("q", [np.zeros(15, complex), np.zeros(15, bool), np.array("2"), None, [[0.0] * 15] * 2 + [[0.0]]])
+def test_junk_configurations_are_typed_errors_without_warnings(q):
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(BiplaneError, match=r"^q must be"):
+            BIPLANE.planes_q(q)
+
+
+@pytest.mark.parametrize("q_f, q_l, message", [
+    (np.zeros(10), np.zeros(9), r"q_lateral must be \(10,\) or \(N, 10\)"),
+    (np.zeros((2, 10)), np.zeros(10), "as many configurations"),
+    (np.zeros(10), "q", "q_lateral must be real numbers"),
+    (np.zeros((1, 1, 10)), np.zeros(10), r"q_frontal must be \(10,\) or \(N, 10\)"),
+])
+def test_join_refuses_mismatched_plane_vectors(q_f, q_l, message):
+    with pytest.raises(BiplaneError, match=message):
+        BIPLANE.join(q_f, q_l)
