@@ -5,11 +5,12 @@ the lateral plane's table (:class:`~carmkin.model.params.TableGeometry`, its tra
 are one and the same table, so the two systems must hold equal tables. Every one-plane tool works on either
 plane unchanged; this module only ties their joint vectors together.
 
-**The joint vector of a biplane** (``nq = k + 10`` for a table of ``k`` joints)::
+**The joint vector of a biplane** (``nq = k + n_f + n_l`` for a table of ``k`` joints)::
 
     q = [table joints (k: table translation d0, then a motorized table's joints, as in each plane),
-         frontal C-arm joints (5: vertical, wigwag, horizontal, angular, orbital),
-         lateral C-arm joints (5: the same names)]
+         frontal C-arm joints (n_f, the frontal system's joints after its table's: vertical, wigwag,
+                               horizontal, angular, orbital for the five-joint chain),
+         lateral C-arm joints (n_l, the same for the lateral system)]
 
 :meth:`Biplane.planes_q` splits it into each plane's own vector ``[table joints, that plane's C-arm joints]``
 (the lateral plane's table joints are the frontal's: the table is one) and :meth:`Biplane.join` puts two
@@ -38,8 +39,10 @@ from .system import CArmSystem
 ISOCENTRE_TOLERANCE = 1e-3
 #: The planes, in the order of a biplane's joint vector and of its poses.
 PLANES = ("frontal", "lateral")
-#: C-arm joints per plane (vertical, wigwag, horizontal, angular, orbital).
-CARM_JOINTS = 5
+
+def table_joint_count(system: CArmSystem) -> int:
+    """Joints of a system's table (its translation d0 and a motorized table's joints): the first of its q."""
+    return 1 + len(system.table.joints)
 
 
 def default_rest(system: CArmSystem) -> np.ndarray:
@@ -94,12 +97,12 @@ class Biplane:
     @property
     def table_nq(self) -> int:
         """Number of table joints, shared by the planes (1 + a motorized table's joints)."""
-        return self.frontal.nq - CARM_JOINTS
+        return table_joint_count(self.frontal)
 
     @property
     def nq(self) -> int:
-        """Number of biplane joints: the table's, then five per plane."""
-        return self.table_nq + 2 * CARM_JOINTS
+        """Number of biplane joints: the table's, then each plane's own (five each for the five-joint chain)."""
+        return self.frontal.nq + self.lateral.nq - self.table_nq
 
     @property
     def joint_names(self) -> tuple[str, ...]:
@@ -137,8 +140,8 @@ class Biplane:
     def planes_q(self, q) -> tuple[np.ndarray, np.ndarray]:
         """``(q_frontal, q_lateral)``: each plane's own joint vector (its nq,) or (N, its nq) from a biplane q."""
         q = self.check(q)
-        k = self.table_nq
-        return q[..., : k + CARM_JOINTS].copy(), np.concatenate((q[..., :k], q[..., k + CARM_JOINTS:]), axis=-1)
+        k, n = self.table_nq, self.frontal.nq
+        return q[..., :n].copy(), np.concatenate((q[..., :k], q[..., n:]), axis=-1)
 
     def join(self, q_frontal, q_lateral) -> np.ndarray:
         """The biplane q from each plane's joint vector; their table joints must agree (to

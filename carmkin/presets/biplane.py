@@ -35,7 +35,7 @@ import math
 import numpy as np
 
 from carmkin.errors import BiplaneError, PresetError
-from carmkin.model.biplane import CARM_JOINTS, Biplane, default_rest
+from carmkin.model.biplane import Biplane, default_rest, table_joint_count
 
 from .schema import check_biplane_file
 
@@ -67,7 +67,7 @@ def rest_vector(data: dict, frontal, lateral, label: str) -> np.ndarray:
     """The biplane rest configuration (nq,) of ``[rest.*]`` (m, rad); joints not named take
     :func:`~carmkin.model.biplane.default_rest`."""
     rest = data.get("rest", {})
-    k, k_lateral = frontal.nq - CARM_JOINTS, lateral.nq - CARM_JOINTS  # (equal tables: checked by Biplane)
+    k, k_lateral = table_joint_count(frontal), table_joint_count(lateral)  # (equal tables: checked by Biplane)
     f, lat = default_rest(frontal), default_rest(lateral)
     named = [(rest.get("table", {}), "table", frontal, range(k), (f, lat) if k == k_lateral else (f,)),
              (rest.get("frontal", {}), "frontal", frontal, range(k, frontal.nq), (f,)),
