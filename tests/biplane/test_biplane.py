@@ -350,3 +350,17 @@ def test_junk_configurations_are_typed_errors_without_warnings(q):
 def test_join_refuses_mismatched_plane_vectors(q_f, q_l, message):
     with pytest.raises(BiplaneError, match=message):
         BIPLANE.join(q_f, q_l)
+
+
+def test_plane_presets_are_found_beside_the_biplane_file(tmp_path):
+    folder = tmp_path / "suite"
+    folder.mkdir()
+    (folder / "front.toml").write_text('base = "angio-floor"\nname = "front"\n[carm]\nwigwag_min_deg = -90.0  '
+                                       '# assumption: a narrower L-arm\n')
+    path = _write(folder, GOOD.replace('frontal = "angio-floor"', 'frontal = "front.toml"  # assumption: ours'))
+    biplane = load_biplane(path)
+    assert biplane.frontal.name == "front" and biplane.frontal.carm.wigwag.lower == pytest.approx(-math.pi / 2)
+    assert carmkin.load_preset(path).name == "mine"  # the frontal plane, named after the biplane
+    provenance = preset_provenance(path)
+    assert provenance["frontal.carm.wigwag_min_deg"].note == "a narrower L-arm"
+    assert provenance["biplane.frontal"].note == "ours"
