@@ -323,3 +323,11 @@ class AnatomyPlacementError(AnatomyError):
 
 class DatasetError(CarmkinError):
     """A dataset request is ill-defined (prior, count, size, output folder) or a prior cannot be met."""
+
+
+# --- carmkin.biplane -----------------------------------------------------------------------------
+
+
+class BiplaneError(CarmkinError):
+    """A biplane is ill-defined: its planes do not share one table or one isocentre, they intersect at rest, a
+    biplane joint vector has the wrong length, or a biplane preset names a plane or key that is not there."""

@@ -35,7 +35,9 @@ LAYERS = (
     ("carmkin.qp_ik",),
     ("carmkin.interop",),
     PLANNERS,
-    ("carmkin.studies", "carmkin.reproduce", "carmkin.datasets", "carmkin.calibration", "carmkin.viz"),
+    # carmkin.biplane runs the view planner for each of its two planes: a study of the planner, not a planner
+    ("carmkin.studies", "carmkin.reproduce", "carmkin.datasets", "carmkin.calibration", "carmkin.viz",
+     "carmkin.biplane"),
     ("carmkin.commands", "carmkin.cli"),
 )
 

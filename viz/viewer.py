@@ -79,15 +79,20 @@ class CArmViewer:
         vis: a ``meshcat.Visualizer``; ``None`` records offline (see :func:`carmkin.viz.offline_visualizer`,
             then :meth:`static_html`). For a live page use ``LoopbackServer().start().visualizer()``.
         q: initial configuration (m, rad); ``None`` is the middle of the joint ranges.
+        root: the meshcat node everything is drawn under (two viewers share one visualizer under two roots, as
+            the two planes of a biplane do: ``carmkin.viz.biplane``).
+        scene_in_world: the root's constant rotation (4, 4); ``None``: this system's cart upright (see above).
     """
 
-    def __init__(self, system: CArmSystem, vis: meshcat.Visualizer | None = None, q=None) -> None:
+    def __init__(self, system: CArmSystem, vis: meshcat.Visualizer | None = None, q=None, root: str = ROOT,
+                 scene_in_world=None) -> None:
         self.system = system
         self.vis = offline_visualizer(f"carmkin: {system.name}") if vis is None else vis
-        self.root = self.vis[ROOT]
+        self.root_path = root
+        self.root = self.vis[root]
         model, collision_model, visual_model = system.pinocchio()
         self.model = model
-        self.robot = self._load_robot(f"{ROOT}/robot", collision_model, visual_model, color=None)
+        self.robot = self._load_robot(f"{root}/robot", collision_model, visual_model, color=None)
         self.data = self.robot.data  # the one kinematic state of the displayed q: robot, cone, triad, distances
         self._scratch = model.createData()  # for configurations that are not displayed (ghost cone, distances)
         self._ghost: MeshcatVisualizer | None = None
@@ -96,6 +101,8 @@ class CArmViewer:
         self.q = check_configuration(system, (system.lower + system.upper) / 2 if q is None else q)
         self.scene_in_world = np.eye(4)  # constant rotation, see the module docstring
         self.scene_in_world[:3, :3] = self._frame_pose(pin.neutral(model), "carm_cart", self._scratch)[:3, :3].T
+        if scene_in_world is not None:
+            self.scene_in_world = check_rigid_transform(scene_in_world, "scene_in_world")
         self.root.set_transform(self.scene_in_world)
         self._draw_cone(self.root["cone"], shapes.CONE_RGB, 0.3)
         self._draw_triad(self.root["frames/table"], np.eye(4), 0.3)
@@ -118,7 +125,7 @@ class CArmViewer:
         q_target = check_configuration(self.system, q_target, "q_target")
         if show_robot:
             if self._ghost is None:
-                self._ghost = self._load_robot(f"{ROOT}/ghost/robot", None, self._ghost_model(),
+                self._ghost = self._load_robot(f"{self.root_path}/ghost/robot", None, self._ghost_model(),
                                                color=[*shapes.GHOST_RGB, 0.3])
         data = self._ghost.data if show_robot else self._scratch
         source = self._frame_pose(q_target, "xray_source", data)
@@ -223,8 +230,8 @@ class CArmViewer:
             for gid, geometry in enumerate(self.robot.visual_model.geometryObjects):
                 name = self.robot.getViewerNodeName(geometry, pin.GeometryType.VISUAL)
                 frame[name].set_transform(geometry_data.oMg[gid].homogeneous)
-            frame[f"{ROOT}/cone"].set_transform(source)
-            frame[f"{ROOT}/frames/xray_source"].set_transform(source)
+            frame[f"{self.root_path}/cone"].set_transform(source)
+            frame[f"{self.root_path}/frames/xray_source"].set_transform(source)
         self.display(q_to)
         self.vis.set_animation(animation, play=play, repetitions=repetitions)
         return path

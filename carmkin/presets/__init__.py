@@ -32,6 +32,8 @@ from carmkin.model.params import (
 from carmkin.model.system import CArmSystem
 from carmkin.model.table_joints import CHAIN_ORDER, KINDS, standard_joints
 
+from . import biplane as _biplane
+from .schema import SETUP_FORMS as _SETUP_FORMS
 from .schema import check_file, check_merged
 from .writer import save_preset, to_toml
 
@@ -71,6 +73,9 @@ def list_presets() -> list[str]:
 
 def load_preset(name_or_path: str | Path) -> CArmSystem:
     """Load a built-in preset by name, or a preset file by path (``*.toml``).
+
+    A biplane preset (:mod:`carmkin.presets.biplane`) loads as its frontal plane, named after the biplane
+    (:func:`read_biplane` reads both planes).
 
     Raises :class:`~carmkin.errors.PresetError` (naming the file, the key and the nearest valid name) for
     malformed TOML, an unknown section or key, a wrong type or a value out of bounds, and
@@ -113,17 +118,38 @@ def preset_provenance(name_or_path: str | Path) -> dict[str, Provenance]:
     Read from each key's trailing comment in the file that set it (parsed with tomlkit, which keeps them).
     """
     _check_name(name_or_path)
+    label = _read_label(str(name_or_path))
+    if _biplane.is_biplane(_toml(Path(label).read_text(), label)):
+        return _biplane_provenance(label)
     _, origin, _ = _read(name_or_path)
     comments = {file: _comments(Path(file).read_text()) for file in set(origin.values())}
     provenance = {}
     for key, file in origin.items():
-        comment = comments[file].get(key, "")
-        kind, _, note = comment.partition(":")
-        kind = kind.strip().lower()
-        if kind not in ("source", "assumption"):
-            kind, note = ("comment" if comment else "none"), comment
-        provenance[key] = Provenance(file, key, kind, note.strip())
+        provenance[key] = _provenance(file, key, comments[file].get(key, ""))
     return provenance
+
+
+def _provenance(file: str, key: str, comment: str) -> Provenance:
+    """The provenance of ``key`` set in ``file`` with its trailing ``comment`` (without ``#``)."""
+    kind, _, note = comment.partition(":")
+    kind = kind.strip().lower()
+    if kind not in ("source", "assumption"):
+        kind, note = ("comment" if comment else "none"), comment
+    return Provenance(file, key, kind, note.strip())
+
+
+def _biplane_provenance(label: str) -> dict[str, Provenance]:
+    """A biplane preset's own keys, then each plane's keys prefixed ``frontal.`` / ``lateral.``."""
+    data, planes = _biplane_file(label)
+    own = _origin(data, label)
+    comments = _comments(Path(label).read_text())
+    out = {key: _provenance(label, key, comments.get(key, "")) for key in own}
+    placed = "setup" in data.get("lateral", {})  # [lateral.setup] replaces the lateral preset's [setup]
+    for plane, value in planes.items():
+        for key, p in preset_provenance(value).items():
+            if key not in ("name", "description") and not (plane == "lateral" and placed and key.startswith("setup.")):
+                out[f"{plane}.{key}"] = Provenance(p.file, f"{plane}.{key}", p.kind, p.note)
+    return out
 
 
 def _build(data: dict, origin: dict[str, str], label: str, default_name: str | None = None) -> CArmSystem:
@@ -147,7 +173,68 @@ def _read(name_or_path: str | Path) -> tuple[dict, dict[str, str], str]:
         label = str(path)
     else:
         label = _builtin_file(str(name_or_path), "preset")
-    return (*_resolve_base(*_parse(Path(label).read_text(), label), label), label)
+    text = Path(label).read_text()
+    if _biplane.is_biplane(_toml(text, label)):  # a biplane preset reads as its frontal plane
+        data, plane = _biplane_file(label)
+        merged, origin, _ = _read(plane["frontal"])
+        return {**merged, "name": data.get("name", Path(label).stem)}, origin, label
+    return (*_resolve_base(*_parse(text, label), label), label)
+
+
+def _toml(text: str, label: str) -> dict:
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:  # the message says "(at line L, column C)"
+        raise PresetError(f"{label}: malformed TOML: {exc}") from None
+
+
+def _biplane_file(label: str) -> tuple[dict, dict[str, str]]:
+    """A biplane preset's checked values and its planes' preset names or paths (relative paths resolved
+    against the biplane file's folder)."""
+    data = _toml(Path(label).read_text(), label)
+    _biplane.check(data, label)
+    planes = {}
+    for plane, value in data[_biplane.SECTION].items():
+        path = Path(value)
+        planes[plane] = str(path if path.is_absolute() or path.suffix != ".toml" else Path(label).parent / path)
+        if _biplane.is_biplane(_toml(Path(_read_label(planes[plane])).read_text(), planes[plane])):
+            raise PresetError(f"{label}: [biplane] {plane} = {value!r} is itself a biplane preset; name a one-plane "
+                              "preset")
+    return data, planes
+
+
+def _read_label(name_or_path: str) -> str:
+    path = Path(name_or_path)
+    if path.suffix == ".toml":
+        if not path.is_file():
+            raise UnknownPresetError(f"no preset file {str(path)!r}")
+        return str(path)
+    return _builtin_file(name_or_path, "preset")
+
+
+def read_biplane(name_or_path: str | Path):
+    """Both planes of a biplane preset (built-in name or ``.toml`` path) as a
+    :class:`~carmkin.model.biplane.Biplane`: the frontal plane's preset, the lateral plane's preset placed by
+    ``[lateral.setup]`` (default: its own ``[setup]``), the rest configuration of ``[rest.*]``. The planes must
+    share one table and one isocentre (:class:`~carmkin.errors.BiplaneError` naming the field). The planes'
+    clearance at rest is checked by :func:`carmkin.biplane.load_biplane`, which calls this."""
+    _check_name(name_or_path)
+    label = _read_label(str(name_or_path))
+    if not _biplane.is_biplane(_toml(Path(label).read_text(), label)):
+        raise PresetError(f"{label}: not a biplane preset (it has no [biplane] section); carmkin.load_preset reads it")
+    data, planes = _biplane_file(label)
+    frontal = load_preset(planes["frontal"])
+    lateral = load_preset(planes["lateral"])
+    if "setup" in data.get("lateral", {}):
+        section = data["lateral"]["setup"]
+        used = [form for form in _SETUP_FORMS if any(k in section for k in form)]
+        if len(used) > 1:
+            raise PresetError(f"{label}: [lateral.setup] mixes the table pose with the DH constants; give one of the two")
+        try:
+            lateral = lateral.replace(setup=_setup(section, lateral.carm))
+        except (PresetError, InvalidParameterError) as exc:
+            raise PresetError(f"{label}: [lateral.setup] {exc}") from None
+    return _biplane.assemble(data, label, frontal, lateral)
 
 
 def _builtin_file(name: str, what: str) -> str:
@@ -162,10 +249,7 @@ def _builtin_file(name: str, what: str) -> str:
 
 def _parse(text: str, label: str) -> tuple[dict, dict[str, str]]:
     """One file's values, checked by :func:`.schema.check_file`, and its dotted keys mapped to ``label``."""
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:  # the message says "(at line L, column C)"
-        raise PresetError(f"{label}: malformed TOML: {exc}") from None
+    data = _toml(text, label)
     check_file(data, label)
     return data, _origin(data, label)
 

@@ -152,20 +152,43 @@ def check_file(data: dict, file: str) -> None:
     _check_section(data, "", file)
 
 
-def _check_section(data: dict, section: str, file: str) -> None:
-    rules = SECTIONS[section]
-    subsections = {s.rpartition(".")[2] for s in SECTIONS if s and s.rpartition(".")[0] == section}
+def _check_section(data: dict, section: str, file: str, sections: dict[str, dict[str, Rule]] = SECTIONS) -> None:
+    rules = sections[section]
+    subsections = {s.rpartition(".")[2] for s in sections if s and s.rpartition(".")[0] == section}
     where = f"[{section}]" if section else "the top level"
     for key, value in data.items():
         if key in subsections:
             if not isinstance(value, dict):
                 raise PresetError(f"{file}: [{_join(section, key)}] must be a table (a [section]), got {value!r}")
-            _check_section(value, _join(section, key), file)
+            _check_section(value, _join(section, key), file, sections)
         elif key in rules:
             check_value(rules[key], value, f"{file}: [{section}] {key}" if section else f"{file}: {key}")
         else:
             kind = "section" if isinstance(value, dict) else "key"
             raise PresetError(f"{file}: unknown {kind} {key!r} in {where}{_nearest(key, set(rules) | subsections)}")
+
+
+#: The sections of a biplane preset (:mod:`carmkin.presets.biplane`): the two planes' presets, the lateral
+#: plane's placement (the forms of ``[setup]``) and the rest configuration (joint values in mm and degrees).
+BIPLANE_SECTIONS: dict[str, dict[str, Rule]] = {
+    "": {"name": _STRING, "description": _STRING},
+    "biplane": {"frontal": _STRING, "lateral": _STRING},
+    "lateral": {},
+    "lateral.setup": SECTIONS["setup"],
+    "rest": {},
+    "rest.table": {f"{name}_{'mm' if prismatic else 'deg'}": _PRISMATIC_LIMIT if prismatic else _REVOLUTE_LIMIT
+                   for name, prismatic in {"table_translation": True,
+                                           **{n: KINDS[n][0] for n in CHAIN_ORDER}}.items()},
+    **{f"rest.{plane}": {f"{name}_{'mm' if prismatic else 'deg'}": _PRISMATIC_LIMIT if prismatic else _REVOLUTE_LIMIT
+                         for name, prismatic in {"vertical": True, "wigwag": False, "horizontal": True,
+                                                 "angular": False, "orbital": False}.items()}
+       for plane in ("frontal", "lateral")},
+}
+
+
+def check_biplane_file(data: dict, file: str) -> None:
+    """:func:`check_file` for a biplane preset (:data:`BIPLANE_SECTIONS`)."""
+    _check_section(data, "", file, BIPLANE_SECTIONS)
 
 
 def check_value(rule: Rule, value, what: str) -> None:
