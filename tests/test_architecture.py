@@ -212,3 +212,13 @@ def test_import_carmkin_is_light():
     code = f"import sys, carmkin; print([m for m in {HEAVY!r} if m in sys.modules])"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
+
+
+def test_test_modules_have_unique_names():
+    """The tests folders are not packages: two test files of one name in two folders break the collection of
+    the whole suite (pytest's rootdir imports), though each folder runs alone."""
+    from collections import Counter
+    from pathlib import Path
+
+    names = Counter(p.name for p in Path(__file__).parent.rglob("test_*.py"))
+    assert not [name for name, count in names.items() if count > 1]
