@@ -94,6 +94,22 @@ SECTIONS: dict[str, dict[str, Rule]] = {
         "pivot_mm": _length(size=3),
         **_limits({name: KINDS[name][0] for name in CHAIN_ORDER}),
     },
+    "mount": {  # a robot (or any chain) carrying the C-arm base: carmkin.model.mount_joints
+        "base_origin_in_table_mm": _length(size=3),
+        "base_x_axis_in_table": _DIRECTION,
+        "base_z_axis_in_table": _DIRECTION,
+        "carm_base_origin_mm": _length(size=3),
+        "carm_base_x_axis": _DIRECTION,
+        "carm_base_z_axis": _DIRECTION,
+        "link_width_mm": _length(positive=True),
+    },
+    "mount.joints": {},
+    "mount.joints.*": {  # one sub-table per joint, named by the joint, in the order from the floor up
+        "axis": _DIRECTION,
+        "point_mm": _length(size=3),
+        "min_mm": _PRISMATIC_LIMIT, "max_mm": _PRISMATIC_LIMIT,  # a prismatic joint
+        "min_deg": _REVOLUTE_LIMIT, "max_deg": _REVOLUTE_LIMIT,  # a revolute joint
+    },
     "body": {
         "floor_height_mm": _length(),
         "cart_size_mm": _length(positive=True, size=3),
@@ -128,7 +144,11 @@ def _check_section(data: dict, section: str, file: str) -> None:
     subsections = {s.rpartition(".")[2] for s in SECTIONS if s and s.rpartition(".")[0] == section}
     where = f"[{section}]" if section else "the top level"
     for key, value in data.items():
-        if key in subsections:
+        if "*" in subsections:  # sub-tables named by the user (the mount's joints), each checked by the "*" rules
+            if not isinstance(value, dict):
+                raise PresetError(f"{file}: [{_join(section, key)}] must be a table (a [section]), got {value!r}")
+            _check_named(value, _join(section, "*"), _join(section, key), file)
+        elif key in subsections:
             if not isinstance(value, dict):
                 raise PresetError(f"{file}: [{_join(section, key)}] must be a table (a [section]), got {value!r}")
             _check_section(value, _join(section, key), file)
@@ -137,6 +157,16 @@ def _check_section(data: dict, section: str, file: str) -> None:
         else:
             kind = "section" if isinstance(value, dict) else "key"
             raise PresetError(f"{file}: unknown {kind} {key!r} in {where}{_nearest(key, set(rules) | subsections)}")
+
+
+def _check_named(data: dict, section: str, name: str, file: str) -> None:
+    """A user-named sub-table ``[name]`` against the rules of ``section`` (``"….*"``)."""
+    rules = SECTIONS[section]
+    for key, value in data.items():
+        if key not in rules:
+            kind = "section" if isinstance(value, dict) else "key"
+            raise PresetError(f"{file}: unknown {kind} {key!r} in [{name}]{_nearest(key, rules)}")
+        check_value(rules[key], value, f"{file}: [{name}] {key}")
 
 
 def check_value(rule: Rule, value, what: str) -> None:
@@ -168,12 +198,13 @@ def check_merged(data: dict, origin: dict[str, str], file: str) -> None:
 
     ``origin`` maps dotted keys to the file each value came from (default: ``file``).
     """
-    for section, rules in SECTIONS.items():
+    named = [(f"mount.joints.{joint}", SECTIONS["mount.joints.*"]) for joint in _section(data, "mount.joints")]
+    for section, rules in [*SECTIONS.items(), *named]:
         values = _section(data, section)
         for key in rules:
-            if "_min_" not in key or key not in values:
+            if "_min_" not in f"_{key}" or key not in values:  # <joint>_min_<unit>, or min_<unit> of a named joint
                 continue
-            upper = key.replace("_min_", "_max_")
+            upper = f"_{key}".replace("_min_", "_max_")[1:]
             unit = key.rpartition("_")[2]
             if upper in values and values[key] > values[upper]:
                 raise PresetError(f"{origin.get(_join(section, key), file)}: [{section}] {key} = {values[key]:g} {unit} "
