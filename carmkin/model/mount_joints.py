@@ -77,6 +77,9 @@ class MountGeometry:
         link_width: side (m) of the square cross-section of the boxes drawn and checked for collision along
             the robot: from B's origin to the first joint's point (the pedestal, fixed), from each joint's
             point to the next one's, from the last one's to the C-arm base (moving).
+        carm_base: the C-arm base frame at rest in B as a preset stated it, ``(origin (m), x axis, z axis)``, or
+            None. The kinematics read the system's setup (whose rest pose the loader derives from this); it is
+            kept so that :func:`carmkin.presets.to_toml` writes the preset back as it was read.
     """
 
     joints: tuple = ()
@@ -84,6 +87,7 @@ class MountGeometry:
     base_x_axis: tuple[float, float, float] = (1.0, 0.0, 0.0)
     base_z_axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
     link_width: float = 0.25
+    carm_base: tuple | None = None
 
     def __post_init__(self) -> None:
         if isinstance(self.joints, (str, bytes)) or not hasattr(self.joints, "__iter__"):
@@ -104,6 +108,15 @@ class MountGeometry:
         object.__setattr__(self, "base_x_axis", tuple(x.tolist()))
         object.__setattr__(self, "base_z_axis", tuple(z.tolist()))
         object.__setattr__(self, "link_width", check_length("MountGeometry.link_width", self.link_width, positive=True))
+        if self.carm_base is not None:
+            try:
+                parts = tuple(tuple(float(v) for v in part) for part in self.carm_base)
+            except (TypeError, ValueError):
+                parts = ()
+            if len(parts) != 3 or any(len(part) != 3 for part in parts):
+                raise InvalidParameterError("MountGeometry.carm_base must be None or (origin, x axis, z axis), three "
+                                            f"3-vectors, got {self.carm_base!r:.80}")
+            object.__setattr__(self, "carm_base", parts)
         for joint in self.joints:
             if max(abs(v) for v in joint.point) > MAX_LENGTH:
                 raise InvalidParameterError(f"mount joint {joint.name!r}: point must be within {MAX_LENGTH:g} m of "

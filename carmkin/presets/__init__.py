@@ -292,7 +292,7 @@ def _table_joints(section: dict) -> tuple:
 MOUNT_CARM_BASE = ("carm_base_origin_mm", "carm_base_x_axis", "carm_base_z_axis")
 
 
-def _mount(section: dict) -> MountGeometry:
+def _mount(section: dict, carm_base=None) -> MountGeometry:
     """The mount of ``[mount]`` and its ``[mount.joints.<name>]`` sub-tables (floor up, in file order)."""
     if not section:
         return MountGeometry()
@@ -319,12 +319,13 @@ def _mount(section: dict) -> MountGeometry:
         base_origin=_mm3(section.get("base_origin_in_table_mm", [0.0, 0.0, 0.0]), "base_origin_in_table_mm"),
         base_x_axis=tuple(section.get("base_x_axis_in_table", (1.0, 0.0, 0.0))),
         base_z_axis=tuple(section.get("base_z_axis_in_table", (0.0, 0.0, 1.0))),
-        link_width=section.get("link_width_mm", MountGeometry.link_width / _MM) * _MM)
+        link_width=section.get("link_width_mm", MountGeometry.link_width / _MM) * _MM, carm_base=carm_base)
 
 
-def _mount_setup(section: dict, mount: MountGeometry) -> TableSetup:
+def _mount_setup(section: dict, mount: MountGeometry) -> tuple[TableSetup, tuple]:
     """The setup of a mounted C-arm from its base at rest in the robot base frame (``[mount] carm_base_*``):
-    eq. 4.3's common normals of the table frame seen from that base, ``inverse(T_0B · T_BC)``."""
+    eq. 4.3's common normals of the table frame seen from that base, ``inverse(T_0B · T_BC)``; and that base
+    as :attr:`MountGeometry.carm_base <carmkin.model.mount_joints.MountGeometry.carm_base>`."""
     missing = [key for key in MOUNT_CARM_BASE if key not in section]
     if missing:
         raise PresetError(f"[mount] gives the C-arm base at rest with {', '.join(MOUNT_CARM_BASE)}; missing "
@@ -336,7 +337,8 @@ def _mount_setup(section: dict, mount: MountGeometry) -> TableSetup:
     T_BC = np.eye(4)
     T_BC[:3, :3] = np.column_stack((x, np.cross(z, x), z))
     T_BC[:3, 3] = np.asarray(section["carm_base_origin_mm"], dtype=float) * _MM
-    return TableSetup.from_pose(inverse(mount.base_pose @ T_BC))
+    carm_base = (tuple(T_BC[:3, 3]), tuple(x), tuple(z))
+    return TableSetup.from_pose(inverse(mount.base_pose @ T_BC)), carm_base
 
 
 def _system(data: dict, default_name: str) -> CArmSystem:
@@ -348,7 +350,8 @@ def _system(data: dict, default_name: str) -> CArmSystem:
         if "setup" in data:
             raise PresetError(f"[mount] {', '.join(MOUNT_CARM_BASE)} place the C-arm base and replace [setup]; "
                               "give one of the two")
-        setup = _mount_setup(mount_section, mount)
+        setup, carm_base = _mount_setup(mount_section, mount)
+        mount = _mount(mount_section, carm_base)
     else:
         setup = _setup(_get(data, "setup", "top level"), carm)
     t = data.get("table", {})

@@ -146,7 +146,8 @@ def _check_section(data: dict, section: str, file: str) -> None:
     for key, value in data.items():
         if "*" in subsections:  # sub-tables named by the user (the mount's joints), each checked by the "*" rules
             if not isinstance(value, dict):
-                raise PresetError(f"{file}: [{_join(section, key)}] must be a table (a [section]), got {value!r}")
+                raise PresetError(f"{file}: {key!r} in [{section}] must be a table (a [{_join(section, key)}] section), "
+                                  f"got {value!r}")
             _check_named(value, _join(section, "*"), _join(section, key), file)
         elif key in subsections:
             if not isinstance(value, dict):
