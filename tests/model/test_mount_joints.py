@@ -171,6 +171,12 @@ def test_a_random_mounted_system_round_trips_through_toml(system, mount):
     np.testing.assert_allclose(back.mount.base_pose, system.mount.base_pose, rtol=0, atol=1e-12)
 
 
+def test_a_preset_based_on_the_robot_locks_the_orbital_slide():
+    locked = parse_preset('base = "robotic-carm"\n[carm]\norbital_min_deg = 0.0\norbital_max_deg = 0.0\n')
+    assert locked.mount == ROBOT.mount and locked.setup == ROBOT.setup
+    assert locked.lower[-1] == locked.upper[-1] == 0.0
+
+
 def test_the_robotic_preset_round_trips_and_keeps_its_carm_base():
     text = to_toml(ROBOT)
     assert "[setup]" not in text and "carm_base_origin_mm" in text
