@@ -48,7 +48,7 @@ __all__ = [
 #: so that importing carmkin does not pull in the QP solvers, coal or meshcat.
 _LAZY_SUBMODULES = {"model", "robot", "analytic_ik", "analytic", "qp_ik", "qp", "singularity", "studies",
                     "imaging", "panorama", "plots", "reposition", "transforms", "viz", "sweeps", "patient", "views",
-                    "world", "datasets"}
+                    "world", "datasets", "calibration"}
 
 
 def _version() -> str:

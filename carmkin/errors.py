@@ -182,11 +182,13 @@ class RepositionModelError(CarmkinError):
     """Bad input to the model from a measured pose (system, pose, joint readings, covariance)."""
 
 
-# --- carmkin.reposition.calibration --------------------------------------------------------------
+# --- carmkin.reposition.calibration, carmkin.calibration ------------------------------------------
 
 
 class CalibrationError(CarmkinError):
-    """Bad calibration data (shapes, too few positions, displacements along one direction only)."""
+    """Bad calibration data: for the table calibration, shapes, too few positions, displacements along one
+    direction only; for :mod:`carmkin.calibration`, joint readings and measured projection matrices that are
+    mis-shaped, not finite, of different counts, not rank 3, out of range, or fewer numbers than parameters."""
 
 
 # --- carmkin.reposition.guidance -----------------------------------------------------------------
@@ -239,6 +241,14 @@ class DicomAttributeError(DicomGeometryError):
 
 class RenderingError(CarmkinError):
     """Rendering is not available (torch/nanodrr/CT missing) or got bad input."""
+
+
+# --- carmkin.model.motion (joint speeds, move durations) ----------------------------------------
+
+
+class MotionError(InvalidParameterError):
+    """A joint speed or acceleration that no machine has (zero, negative, not finite), or a move or path of
+    the wrong shape for the joints' speeds."""
 
 
 # --- carmkin.sweeps (3D sweeps) ------------------------------------------------------------------

@@ -35,7 +35,7 @@ LAYERS = (
     ("carmkin.qp_ik",),
     ("carmkin.interop",),
     PLANNERS,
-    ("carmkin.studies", "carmkin.reproduce", "carmkin.datasets", "carmkin.viz"),
+    ("carmkin.studies", "carmkin.reproduce", "carmkin.datasets", "carmkin.calibration", "carmkin.viz"),
     ("carmkin.commands", "carmkin.cli"),
 )
 

@@ -141,6 +141,24 @@ def test_fk(system, data):
         assert is_rigid(T) and T.shape[-2:] == (4, 4)
 
 
+@pytest.mark.parametrize("system", [PRESET, MOTORIZED], ids=["plain", "motorized"])
+@fuzz()
+@given(data=st.data())
+def test_motion_durations(system, data):
+    """Joint speeds, moves and sweep timings: a duration ≥ 0 s, or a typed error."""
+    from carmkin.model import motion
+
+    status, _ = call(motion.JointMotion, data.draw(junk_scalar), data.draw(st.none() | junk_scalar), "orbital")
+    status, duration = call(motion.move_duration, system.motion, np.zeros(system.nq), data.draw(junk_vector(system.nq)))
+    if status == "ok":
+        assert duration.seconds >= 0
+    Q = np.zeros((3, system.nq))
+    Q[-1, -1] = 0.1
+    status, check = call(motion.follow, system.motion, Q, data.draw(st.none() | junk_scalar))
+    if status == "ok":
+        assert check.minimum_time > 0 and check.duration > 0
+
+
 @fuzz()
 @given(field=st.sampled_from(["length_offset", "orbital_offset", "a1", "a2", "source_to_detector",
                               "detector_width", "detector_height"]), value=junk_scalar)

@@ -16,6 +16,7 @@ from strategies import PRESET
 
 import carmkin
 from carmkin.errors import InvalidParameterError, NearSingularSetupError, PresetError, UnknownPresetError
+from carmkin.model.motion import Motion
 from carmkin.model.bounds import MAX_ANGLE, MAX_LENGTH, MAX_PIXELS, MAX_SETUP_DISTANCE, NEAR_PARALLEL_SIN
 from carmkin.model.table_joints import CHAIN_ORDER, KINDS, standard_joints
 from carmkin.presets import parse_preset, preset_provenance, save_preset, to_toml
@@ -24,9 +25,10 @@ from carmkin.presets.schema import SECTIONS
 BUILTIN = (carmkin.presets._preset_dir() / "siremobile-iso-c3d.toml").read_text()
 MOTORIZED = (carmkin.presets._preset_dir() / "siremobile-iso-c3d-motorized-table.toml").read_text()
 ROBOTIC = (carmkin.presets._preset_dir() / "robotic-carm.toml").read_text()
-#: What a "source:" comment must cite: the dissertation (a § or a Table), or a named public document (a file of a
-#: public repository cited in the preset's header, e.g. ROS-Industrial's KUKA URDF, or the pyskindose dose reports).
-CITED = r"dissertation (Table \d\.\d|§\d\.\d)|\w\.(xacro|urdf|yaml)\b|pyskindose"
+#: What a "source:" comment must cite: the dissertation (a § or a Table), a paper by its PubMed id (joint speeds,
+#: which the dissertation does not give), or a named public document (a file of a public repository cited in the
+#: preset's header, e.g. ROS-Industrial's KUKA URDF, or the pyskindose dose reports).
+CITED = r"dissertation (Table \d\.\d|§\d\.\d)|PMID \d+|\w\.(xacro|urdf|yaml)\b|pyskindose"
 #: Relative and absolute tolerance of a TOML round trip (m, rad): the mm/deg conversions round by a few ulp.
 ROUND_TRIP_REL, ROUND_TRIP_ABS = 1e-12, 1e-15
 
@@ -35,7 +37,8 @@ def _with_line(section: str, line: str, text: str = BUILTIN) -> str:
     """``text`` with ``line`` added at the top of ``[section]`` ("" = top level)."""
     if not section:
         return f"{line}\n{text}"
-    assert f"[{section}]\n" in text
+    if f"[{section}]\n" not in text:  # an optional section the file lacks (e.g. [calibration])
+        return f"{text}\n[{section}]\n{line}\n"
     return text.replace(f"[{section}]\n", f"[{section}]\n{line}\n", 1)
 
 
@@ -74,6 +77,16 @@ _EDITS = [
     (BUILTIN, "wigwag_min_deg = -10.0", "wigwag_min_deg = 30.0",
      r"\[carm\] wigwag_min_deg = 30 deg > wigwag_max_deg = 10 deg"),
     (BUILTIN, "orbital_max_deg = 95.0", "orbital_max_deg = 1e17", r"orbital_max_deg must be within \[-360, 360\] deg, got 1e\+17"),
+    # joint speeds: positive, every joint of the system, no joint it lacks
+    (BUILTIN, "orbital_speed_deg_s = 1.5833333333333333", "orbital_speed_deg_s = 0.0",
+     r"user\.toml: \[motion\] orbital_speed_deg_s must be within \[5\.72958e-05, 57295\.8\] deg/s, got 0"),
+    (BUILTIN, "vertical_acceleration_mm_s2 = 50.0", "vertical_acceleration_mm_s2 = -50.0",
+     r"\[motion\] vertical_acceleration_mm_s2 must be within \[0\.001, 1e\+06\] mm/s², got -50"),
+    (BUILTIN, "wigwag_speed_deg_s = 5.0", "wigwag_speed_dg_s = 5.0",
+     r"unknown key 'wigwag_speed_dg_s' in \[motion\]; did you mean 'wigwag_speed_deg_s'\?"),
+    (BUILTIN, "wigwag_speed_deg_s = 5.0", "", r"user\.toml: missing key \[motion\] wigwag_speed_deg_s"),
+    (BUILTIN, "[motion]\n", "[motion]\ntable_tilt_speed_deg_s = 3.0\n",
+     r"user\.toml: \[motion\] table_tilt_speed_deg_s: the system has no such joint"),
     # malformed TOML, with the file and line
     (BUILTIN, "orbital_offset_mm = 625.0", "orbital_offset_mm = ", r"user\.toml: malformed TOML: .* line 10"),
     (BUILTIN, "[carm]\n", "[carm]\na1_mm = 1.0\n", r"user\.toml: malformed TOML: .* \(at line 12, column 12\)"),
@@ -274,7 +287,12 @@ def preset_systems(draw) -> carmkin.CArmSystem:
         floor_height=draw(_lengths()), cart_size=draw(_lengths(True, 3)), column_width=draw(_lengths(True)),
         c_thickness=draw(_lengths(True)), c_depth=draw(_lengths(True)), source_housing=draw(_lengths(True, 3)),
         detector_thickness=draw(_lengths(True)))
-    return carmkin.CArmSystem(carm=carm, setup=setup, table=table, body=body, name=draw(st.text(max_size=20)))
+    system = carmkin.CArmSystem(carm=carm, setup=setup, table=table, body=body, name=draw(st.text(max_size=20)))
+    if draw(st.booleans()):  # joint speeds (and, for some joints, accelerations) in (0, 1e3] per s
+        rate = st.floats(1e-5, 1e3, **_in)
+        system = system.replace(motion=Motion.of(system.joint_names, [draw(rate) for _ in system.joint_names],
+                                                 [draw(st.none() | rate) for _ in system.joint_names]))
+    return system
 
 
 def _assert_close(a, b, where: str = "system") -> None:
@@ -310,3 +328,23 @@ def test_system_from_dict_is_as_strict_as_a_file():
         system_from_dict({"base": "siremobile-iso-c3d", "carm": {"a1_mn": 50.0}})
     system = system_from_dict({"base": "siremobile-iso-c3d", "carm": {"a1_mm": 50.0}})
     assert system.carm.a1 == pytest.approx(0.05) and system.name == "custom"
+
+
+# --- joint speeds ----------------------------------------------------------------------------------------
+@pytest.mark.parametrize("name", carmkin.list_presets())
+def test_builtin_presets_give_every_joint_a_speed_and_an_acceleration(name):
+    system = carmkin.load_preset(name)
+    assert system.motion is not None and system.motion.names == system.joint_names
+    assert all(j.acceleration is not None for j in system.motion.joints)
+
+
+def test_the_orbital_speed_is_the_published_scan():
+    """190° (Table 4.4: ±95°) in the 120 s of an ISO-C-3D scan (Richter et al. 2009): 1.5833°/s."""
+    orbital = carmkin.load_preset("siremobile-iso-c3d").motion["orbital"]
+    assert math.degrees(orbital.speed) == pytest.approx(190 / 120, rel=1e-12)
+
+
+def test_a_preset_without_motion_has_no_speeds(tmp_path):
+    text = BUILTIN[: BUILTIN.index("[motion]")]
+    system = _load(text, tmp_path)
+    assert system.motion is None and "[motion]" not in to_toml(system)

@@ -108,8 +108,12 @@ def _read(system, q, args, origin, ds) -> int:
         print(f"no valid configuration reaches this view: {result.reason}")
         write_json(args, {**out, "reason": str(result.reason)})
         return 1
+    from carmkin.model.motion import system_move
+
+    duration = system_move(system, q, result.q)  # every joint at once
     write_json(args, {**out, "path": getattr(result.path, "value", str(result.path)), "q": joints_json(system, result.q),
-                      "moves": joints_json(system, result.q - q)})
+                      "moves": joints_json(system, result.q - q), "duration_s": duration.seconds})
     print(f"configuration ({getattr(result.path, 'value', result.path)}): {describe(system, result.q)}")
     print("moves: " + format_joints(system, result.q - q, between=" "))
+    print(f"the moves take {duration}")
     return 0

@@ -125,6 +125,7 @@ def _simulate(args) -> int:
         print(f"         move {name} by {move} (path clear by >= {config.guidance.path_clearance * 1e3:.0f} mm, "
               f"{step.sweep.samples} checks); operator moved {done}; true path "
               f"{'clear' if truth.clear else 'COLLIDES'}, min distance {truth.min_distance * 1e3:.0f} mm")
+        print(f"         this move takes {step.duration}; all remaining moves {step.remaining_duration}")
 
     from carmkin.reposition.calibration import rotation_angle
 

@@ -6,7 +6,9 @@ isocentre; --plain for the joint rotation alone), and checks the whole arc — b
 the table, the floor and a box patient (--patient-box-mm) with a --margin-mm clearance. It prints the swept
 clearance, the plain rotation's isocentre drift, the joint that limits the arc and the short-scan check
 (arc vs 180° + fan angle); exit 1 when the arc does not fit (the obstruction, its angle and the largest
-feasible arc are printed). Exports: --rtk-xml (RTK geometry, mm), --astra (.npy cone_vec rows, mm), --tigre
+feasible arc are printed), how long the sweep takes at the preset's joint speeds, and with
+--acquisition-time-s whether the joints can follow that time (exit 1 when one cannot: which, and by how
+much). Exports: --rtk-xml (RTK geometry, mm), --astra (.npy cone_vec rows, mm), --tigre
 (.npz TIGRE arrays, mm), --html (the arc in the viewer), --png (clearance and drift along the arc), --json (the plan).
 
 ``carmkin sweep reconstruct`` forward-projects RTK's Shepp–Logan along the planned sweep (Joseph, CPU),
@@ -22,6 +24,7 @@ import math
 import numpy as np
 
 from carmkin.errors import UsageError
+from carmkin.model.motion import ACQUISITION_TIME_RANGE
 
 from ._common import JOINTS_FLAG, MIN_DISTANCE_MM, MM_PER_M, add_joints_argument, add_json_argument, add_png_argument, \
     add_preset_argument, integer, joints_json, number, output_path, parse_joints, parse_numbers, plot_path, \
@@ -53,6 +56,9 @@ def _plan_arguments(parser: argparse.ArgumentParser) -> None:
                         help="clearance kept along the whole arc (mm, default 10)")
     parser.add_argument("--patient-box-mm", metavar="W,H,L[,X,Y,Z]",
                         help="box patient: full size (mm) along table X, Y, Z and its centre (mm, default 0,0,0)")
+    parser.add_argument("--acquisition-time-s", type=number(*ACQUISITION_TIME_RANGE, unit="s"), default=None,
+                        help="acquire the views over this time (s): check that the joints can follow it (their "
+                        "speeds and accelerations from the preset; exit 1 if one cannot)")
 
 
 def register(parser: argparse.ArgumentParser) -> None:
@@ -111,7 +117,15 @@ def _plan(args, system):
     return plan_sweep(system, parse_numbers(args.target_mm, 3, "--target-mm") / MM_PER_M, args.arc_deg, args.views,
                       patient=_patient(args.patient_box_mm), q_start=q_start, joint=_joint(args.joint),
                       distance=None if args.distance_mm is None else args.distance_mm / MM_PER_M,
-                      compensate=not args.plain, margin=args.margin_mm / MM_PER_M)
+                      compensate=not args.plain, margin=args.margin_mm / MM_PER_M,
+                      acquisition_time_s=args.acquisition_time_s)
+
+
+def _followed(sweep) -> bool:
+    """False when the joints cannot follow the asked acquisition time."""
+    from carmkin.model.motion import Follow
+
+    return sweep.timing is None or sweep.timing.status is not Follow.TOO_FAST
 
 
 def run(args: argparse.Namespace) -> int:
@@ -126,7 +140,7 @@ def run(args: argparse.Namespace) -> int:
     print(sweep.summary())
     _export(sweep, paths, plot)
     write_json(args, _sweep_json(sweep))
-    return 0 if sweep.success else 1
+    return 0 if sweep.success and _followed(sweep) else 1
 
 
 def _sweep_json(sweep) -> dict:
@@ -137,7 +151,18 @@ def _sweep_json(sweep) -> dict:
             "distance_mm": sweep.distance * MM_PER_M, "min_clearance_mm": sweep.min_clearance * MM_PER_M,
             "margin_mm": sweep.margin * MM_PER_M, "limiting_joint": sweep.limiting_joint,
             "failure": None if sweep.failure is None else str(sweep.failure),
-            "q": [joints_json(sweep.system, row) for row in q]}
+            "q": [joints_json(sweep.system, row) for row in q], **_timing_json(sweep)}
+
+
+def _timing_json(sweep) -> dict:
+    """The approach and the sweep's timing (s; None where unknown)."""
+    timing = sweep.timing
+    return {"approach_s": sweep.approach.seconds if sweep.approach is not None else None,
+            "acquisition_time_s": None if timing is None else timing.acquisition_time,
+            "minimum_acquisition_s": None if timing is None else timing.minimum_time,
+            "follows": None if timing is None else timing.status.value,
+            "binding_joint": None if timing is None else timing.joint,
+            "duration_s": None if timing is None else timing.duration}
 
 
 def _export(sweep, paths, plot) -> None:

@@ -5,7 +5,8 @@ secondary CRA +, CAU −; degrees) of --target-mm (table frame, mm) for a patien
 (--patient parametric, the default, sized by --patient-height-mm / --patient-mass-kg and placed by
 --patient-position, the DICOM Patient Position code; or --patient none). `--standard NAME` names a standard
 view instead (`carmkin views plan --standard list` lists them). It prints the joints (mm, deg), the clearance
-to patient, table and floor (mm), and when the view is unreachable the reason and the nearest reachable view.
+to patient, table and floor (mm), from --q-mm-deg the joint-by-joint moves and how long they take (s, at the
+preset's joint speeds), and when the view is unreachable the reason and the nearest reachable view.
 `carmkin views map` prints how many (primary, secondary) cells are reachable (default −90…90 × −45…45 at
 --step-deg 5); --png writes the map as a figure, --html a static page with the sphere of view directions
 coloured by clearance, --json the cells. Exit 1 when a planned view is unreachable.
@@ -188,6 +189,8 @@ def _print_plan(system, plan, position) -> None:
             print("  found by the QP with the motorized table's and the mount's joints free (the closed form holds them)")
         for m in plan.moves:
             print(f"  move {m.joint}: {'clear' if m.clear else 'blocked'}" + (f" ({m.reason})" if m.reason else ""))
+        if plan.moves and plan.duration is not None:
+            print(f"  moves take {plan.duration}")
         return
     print(f"unreachable: {plan.reason}")
     if plan.nearest is not None:
@@ -203,7 +206,8 @@ def _plan_json(system, plan, position) -> dict:
     if plan.success:
         out.update(q=common.joints_json(system, plan.q), clearance_mm=plan.clearance * MM, distance_mm=plan.distance * MM,
                    rotation_deg=_rotation(system, plan.q, position),
-                   clearance_to_mm={k: v * MM for k, v in (plan.clearance_to or {}).items()})
+                   clearance_to_mm={k: v * MM for k, v in (plan.clearance_to or {}).items()},
+                   duration_s=plan.duration.seconds if plan.duration is not None else None)
     if plan.nearest is not None:
         out["nearest"] = {"angles_deg": list(plan.nearest.view.angles(position)), "angle_deg": float(np.degrees(plan.angle)),
                           "q": common.joints_json(system, plan.nearest.q), "clearance_mm": plan.nearest.clearance * MM}

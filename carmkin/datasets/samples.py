@@ -37,11 +37,11 @@ def clearance(system, patient, Q) -> np.ndarray:
 
 
 def projection_matrices(K, T) -> np.ndarray:
-    """P (n, 3, 4) = K [Rᵀ | −Rᵀ p] for source poses T (n, 4, 4) (batched
-    :func:`carmkin.imaging.projection.projection_from_pose`)."""
+    """P (n, 3, 4) = K [Rᵀ | −Rᵀ p] for source poses T (n, 4, 4) and intrinsics K (3, 3) or, calibrated, one
+    per view (n, 3, 3) (batched :func:`carmkin.imaging.projection.projection_from_pose`)."""
     R, p = T[:, :3, :3], T[:, :3, 3]
     Rt = np.transpose(R, (0, 2, 1))
-    return np.einsum("ij,njk->nik", K, np.concatenate((Rt, -np.einsum("nij,nj->ni", Rt, p)[:, :, None]), axis=2))
+    return K @ np.concatenate((Rt, -np.einsum("nij,nj->ni", Rt, p)[:, :, None]), axis=2)
 
 
 def xa_angles(T, patient_pose) -> tuple[np.ndarray, np.ndarray]:
@@ -129,13 +129,13 @@ class PoseSamples:
 def build(system, patient, Q, labels, nominal, provenance: dict, rejections: Rejections,
           margin: float) -> PoseSamples:
     """The samples of configurations ``Q`` (n, nq) with their geometry, checked (:func:`check`)."""
-    from carmkin.imaging.projection import intrinsics
+    from carmkin.imaging.projection import intrinsics, view_intrinsics
 
     Q = np.asarray(Q, dtype=float).reshape(-1, system.nq)
-    K, size = intrinsics(system)
+    _, size = intrinsics(system)
     T = system.fk(Q) if len(Q) else np.zeros((0, 4, 4))
     primary, secondary = xa_angles(T, patient_frame(patient))
-    samples = PoseSamples(Q, T, projection_matrices(K, T), primary, secondary, clearance(system, patient, Q),
+    samples = PoseSamples(Q, T, projection_matrices(view_intrinsics(system, Q), T), primary, secondary, clearance(system, patient, Q),
                           np.asarray(labels, dtype=object), np.asarray(nominal, dtype=float).reshape(-1, 2),
                           provenance, rejections, size)
     check(system, samples, margin)
@@ -153,10 +153,11 @@ def check(system, samples: PoseSamples, margin: float) -> None:
         i, k = map(int, np.argwhere(outside)[0])
         raise DatasetError(f"sample {i}: {system.joint_names[k]} = {Q[i, k]:g} outside its range "
                            f"[{system.lower[k]:g}, {system.upper[k]:g}] (m or rad)")
-    from carmkin.imaging.projection import intrinsics
+    from carmkin.imaging.projection import view_intrinsics
 
-    # P = K [Rᵀ | −Rᵀ p] exactly when P's left block times R is K and the source position is P's null vector.
-    K, _ = intrinsics(system)
+    # P = K [Rᵀ | −Rᵀ p] exactly when P's left block times R is K (H K for a calibrated system) and the source
+    # position is P's null vector.
+    K = view_intrinsics(system, Q)
     R, p, P = samples.source_pose[:, :3, :3], samples.source_pose[:, :3, 3], samples.P
     scale = np.linalg.norm(P, axis=(1, 2))
     residual = np.maximum(np.linalg.norm(P[:, :, :3] @ R - K, axis=(1, 2)),

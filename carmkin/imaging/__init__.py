@@ -25,6 +25,7 @@ from .projection import (
     patient_pose,
     pose_from_projection,
     projection_from_pose,
+    projection_matrices,
     projection_matrix,
 )
 
@@ -32,5 +33,6 @@ __all__ = [
     "ImagingError", "apply_homography", "back_project", "dehomogenize", "homogeneous", "homography_between",
     "image_border", "in_image", "measure_distance", "plane_homography", "plane_in_frame", "project",
     "relative_pose", "rotation_between", "rotation_homography",
-    "intrinsics", "patient_pose", "pose_from_projection", "projection_from_pose", "projection_matrix",
+    "intrinsics", "patient_pose", "pose_from_projection", "projection_from_pose", "projection_matrices",
+    "projection_matrix",
 ]

@@ -75,6 +75,11 @@ def projection_from_pose(K, T) -> np.ndarray:
 def projection_matrix(system, q, patient=None) -> np.ndarray:
     """The projection matrix (3, 4) of configuration ``q`` (nq,) taking world points (m) to pixels.
 
+    ``q`` holds model joint values (a calibrated device's readings become them through
+    ``system.calibration.model_joints``); a calibrated system's detector rotation and sag enter ``K``
+    (``P = H K [Rᵀ | −Rᵀ p]``, :meth:`~carmkin.model.calibration.Calibration.detector_map`;
+    :func:`projection_matrices` is the batch).
+
     World = the table frame 0, or the patient frame when ``patient`` is given: a patient position code
     (``"HFS"``, ...; origin at the table origin) or the (4, 4) pose of the patient frame in the table frame
     (see :func:`patient_pose`).
@@ -87,7 +92,32 @@ def projection_matrix(system, q, patient=None) -> np.ndarray:
         T_patient = patient_pose(patient) if isinstance(patient, str) else check_rigid_transform(
             patient, "patient pose")
         T = inverse(T_patient) @ T
+    if not system.calibration.is_nominal:  # the detector's rotation and sag (carmkin.model.calibration)
+        return system.calibration.detector_map(system.carm, float(np.asarray(q, dtype=float)[-1])) @ \
+            projection_from_pose(K, T)
     return projection_from_pose(K, T)
+
+
+def projection_matrices(system, Q) -> np.ndarray:
+    """Projection matrices (N, 3, 4) of configurations ``Q`` (N, nq) (model joint values), vectorized: each
+    equals :func:`projection_matrix` of its row (world = the table frame, m to px)."""
+    instance(system, CArmSystem, "system", error=ImagingError)
+    if np.ndim(Q) != 2:
+        raise ImagingError(f"Q must be configurations (N, {system.nq}), got shape {np.shape(Q)}")
+    T = system.fk(Q)
+    K = view_intrinsics(system, Q)
+    R_t = np.swapaxes(T[:, :3, :3], 1, 2)
+    extrinsics = np.concatenate((R_t, -R_t @ T[:, :3, 3:]), axis=2)  # [Rᵀ | −Rᵀ p] per view
+    return K @ extrinsics
+
+
+def view_intrinsics(system, Q) -> np.ndarray:
+    """The intrinsics of each view of configurations ``Q`` (N, nq): K (3, 3) of a nominal system, else the
+    calibrated detector's ``H K`` (N, 3, 3) (:meth:`~carmkin.model.calibration.Calibration.detector_map`)."""
+    K = system.carm.intrinsics()
+    if system.calibration.is_nominal:
+        return K
+    return system.calibration.detector_map(system.carm, np.asarray(Q, dtype=float)[:, -1]) @ K
 
 
 def pose_from_projection(P) -> tuple[np.ndarray, np.ndarray]:

@@ -15,6 +15,8 @@ from carmkin.validation import JOINT_VALUE_LIMIT, plain_floats, unit_slip
 
 from . import kinematics
 from .bounds import MAX_ANGLE, MAX_LENGTH, check_joint_limits
+from .calibration import Calibration
+from .motion import Motion
 from .mount_joints import MountGeometry
 from .params import (
     JOINT_NAMES,
@@ -53,26 +55,43 @@ class CArmSystem:
     table: TableGeometry = field(default_factory=TableGeometry)
     body: BodyGeometry = field(default_factory=BodyGeometry)
     name: str = "custom"
+    calibration: Calibration = field(default_factory=Calibration)
+    #: Joint speeds and accelerations (:mod:`carmkin.model.motion`), one per joint in the order of q; None
+    #: when the preset gives none (plans then report no duration).
+    motion: Motion | None = None
+    #: What carries the C-arm base: a robot's joints (:mod:`carmkin.model.mount_joints`); none by default.
     mount: MountGeometry = field(default_factory=MountGeometry)
 
     def __post_init__(self) -> None:
         for name, kind in (("carm", CArmGeometry), ("setup", TableSetup), ("table", TableGeometry),
-                           ("body", BodyGeometry), ("name", str), ("mount", MountGeometry)):
+                           ("body", BodyGeometry), ("name", str), ("calibration", Calibration),
+                           ("mount", MountGeometry)):
             if not isinstance(getattr(self, name), kind):
                 raise InvalidParameterError(
                     f"CArmSystem.{name} must be a {kind.__name__}, got {type(getattr(self, name)).__name__} "
                     f"{getattr(self, name)!r:.80}")
         for joint_range, prismatic in zip(self.joint_ranges, self.prismatic):
             check_joint_limits(joint_range, prismatic, "CArmSystem")
+        self.calibration.offsets(self.nq)  # one zero offset per joint, or none
+        if self.motion is not None and (not isinstance(self.motion, Motion) or self.motion.names != self.joint_names):
+            raise InvalidParameterError(
+                f"CArmSystem.motion must be a Motion naming the joints {', '.join(self.joint_names)} in this "
+                f"order, got {getattr(self.motion, 'names', type(self.motion).__name__)}")
 
     def replace(self, **changes) -> "CArmSystem":
-        """A new system with some fields replaced, e.g. ``system.replace(carm=..., setup=...)``."""
+        """A new system with some fields replaced, e.g. ``system.replace(carm=..., setup=...)``. A new
+        ``table`` (or ``mount``) whose joints differ keeps the joint speeds (:attr:`motion`) by joint name, or none
+        when a joint has none (give ``motion=`` to set them)."""
         names = [f.name for f in dataclasses.fields(self)]
         for key in changes:
             if key not in names:
                 hint = difflib.get_close_matches(key, names, n=1)
                 raise InvalidParameterError(f"CArmSystem.replace: unknown field {key!r}"
                                             + (f"; did you mean {hint[0]!r}?" if hint else f"; fields: {', '.join(names)}"))
+        if "motion" not in changes and self.motion is not None and ("table" in changes or "mount" in changes):
+            # the joints may change: keep each remaining joint's speed by name (none if a new joint has none)
+            names = dataclasses.replace(self, **changes, motion=None).joint_names
+            changes["motion"] = self.motion.for_joints(names)
         return dataclasses.replace(self, **changes)
 
     # --- joints ---------------------------------------------------------------------------------------

@@ -20,6 +20,8 @@ import numpy as np
 
 from carmkin.errors import InvalidParameterError, PresetError, UnknownPresetError
 from carmkin.model import kinematics
+from carmkin.model.calibration import Calibration
+from carmkin.model.motion import JointMotion, Motion
 from carmkin.model.mount_joints import AXIS_TOLERANCE
 from carmkin.model.params import (
     BodyGeometry,
@@ -365,5 +367,41 @@ def _system(data: dict, default_name: str) -> CArmSystem:
     )
     body = BodyGeometry(**{key[: -len("_mm")]: _mm3(value, key) if isinstance(value, list) else value * _MM
                             for key, value in data.get("body", {}).items()})
-    return CArmSystem(carm=carm, setup=setup, table=table, body=body, name=data.get("name", default_name),
-                      mount=mount)
+    system = CArmSystem(carm=carm, setup=setup, table=table, body=body, name=data.get("name", default_name),
+                        mount=mount)
+    if "calibration" in data:
+        system = system.replace(calibration=_calibration(data["calibration"], system))
+    return system.replace(motion=_motion(data["motion"], system)) if "motion" in data else system
+
+
+def _calibration(section: dict, system: CArmSystem) -> Calibration:
+    """``[calibration]``: ``<joint>_zero_offset_mm|deg`` (absent = 0), ``detector_rotation_deg``, ``sag_*_mm``."""
+    offsets = []
+    for name, prismatic in zip(system.joint_names, system.prismatic):
+        unit, scale = ("mm", _MM) if prismatic else ("deg", math.pi / 180)
+        offsets.append(section.get(f"{name}_zero_offset_{unit}", 0.0) * scale)
+    known = {f"{name}_zero_offset_{'mm' if p else 'deg'}" for name, p in zip(system.joint_names, system.prismatic)}
+    for key in section:
+        if "_zero_offset_" in key and key not in known:
+            raise PresetError(f"[calibration] {key}: the system has no such joint (joints: "
+                              f"{', '.join(system.joint_names)})")
+    return Calibration(tuple(offsets), math.radians(section.get("detector_rotation_deg", 0.0)),
+                       section.get("sag_cos_mm", 0.0) * _MM, section.get("sag_sin_mm", 0.0) * _MM)
+
+
+def _motion(section: dict, system: CArmSystem) -> Motion:
+    """``[motion]``: every joint's ``<joint>_speed_mm_s|deg_s`` (required) and
+    ``<joint>_acceleration_mm_s2|deg_s2`` (optional: not known), converted to SI."""
+    units = {name: ("mm", _MM) if prismatic else ("deg", math.pi / 180)
+             for name, prismatic in zip(system.joint_names, system.prismatic)}
+    known = {f"{name}_{kind}_{unit}_s{'2' if kind == 'acceleration' else ''}"
+             for name, (unit, _) in units.items() for kind in ("speed", "acceleration")}
+    extra = sorted(set(section) - known)
+    if extra:
+        raise PresetError(f"[motion] {extra[0]}: the system has no such joint (joints: {', '.join(system.joint_names)})")
+    joints = []
+    for name, (unit, scale) in units.items():
+        acceleration = section.get(f"{name}_acceleration_{unit}_s2")
+        joints.append(JointMotion(_get(section, f"{name}_speed_{unit}_s", "motion") * scale,
+                                  None if acceleration is None else acceleration * scale, name))
+    return Motion(tuple(joints))

@@ -8,6 +8,7 @@ The bounds are those of :mod:`carmkin.model.bounds`, converted to mm and degrees
 from __future__ import annotations
 
 import difflib
+import re
 import math
 from dataclasses import dataclass
 
@@ -20,6 +21,8 @@ from carmkin.model.bounds import (
     MIN_LENGTH,
     check_real,
 )
+from carmkin.model.motion import MAX_RATE, MIN_RATE
+from carmkin.model.params import JOINT_NAMES, PRISMATIC
 from carmkin.model.table_joints import CHAIN_ORDER, KINDS
 
 #: One millimetre in metres and one degree in radians: the preset's units.
@@ -60,6 +63,21 @@ def _limits(joints: dict[str, bool]) -> dict[str, Rule]:
     return {f"{name}_{side}_{'mm' if prismatic else 'deg'}": _PRISMATIC_LIMIT if prismatic else _REVOLUTE_LIMIT
             for name, prismatic in joints.items() for side in ("min", "max")}
 
+
+def _rates(joints: dict[str, bool]) -> dict[str, Rule]:
+    """``<joint>_speed_mm_s|deg_s`` and ``<joint>_acceleration_mm_s2|deg_s2`` for joints given as {name:
+    prismatic}, within [:data:`~carmkin.model.motion.MIN_RATE`, :data:`~carmkin.model.motion.MAX_RATE`]
+    converted to mm or degrees."""
+    rules = {}
+    for name, prismatic in joints.items():
+        unit, scale = ("mm", MM) if prismatic else ("deg", DEG)
+        rules[f"{name}_speed_{unit}_s"] = Rule("number", f"{unit}/s", MIN_RATE / scale, MAX_RATE / scale)
+        rules[f"{name}_acceleration_{unit}_s2"] = Rule("number", f"{unit}/s²", MIN_RATE / scale, MAX_RATE / scale)
+    return rules
+
+
+#: Every joint a preset may have, {name: prismatic}: the paper's six and a motorized table's.
+ALL_JOINTS = {**dict(zip(JOINT_NAMES, PRISMATIC)), **{name: KINDS[name][0] for name in CHAIN_ORDER}}
 
 #: Every section (dotted for sub-tables; "" is the top level) and the rule of each of its keys.
 SECTIONS: dict[str, dict[str, Rule]] = {
@@ -110,6 +128,15 @@ SECTIONS: dict[str, dict[str, Rule]] = {
         "min_mm": _PRISMATIC_LIMIT, "max_mm": _PRISMATIC_LIMIT,  # a prismatic joint
         "min_deg": _REVOLUTE_LIMIT, "max_deg": _REVOLUTE_LIMIT,  # a revolute joint
     },
+    # a calibrated device (carmkin.model.calibration.Calibration): reading + zero offset = model joint value
+    "calibration": {
+        **{f"{name}_zero_offset_{'mm' if prismatic else 'deg'}": _PRISMATIC_LIMIT if prismatic else _REVOLUTE_LIMIT
+           for name, prismatic in {**dict(zip(JOINT_NAMES, PRISMATIC)),
+                                   **{name: KINDS[name][0] for name in CHAIN_ORDER}}.items()},
+        "detector_rotation_deg": _REVOLUTE_LIMIT,
+        "sag_cos_mm": _PRISMATIC_LIMIT,
+        "sag_sin_mm": _PRISMATIC_LIMIT,
+    },
     "body": {
         "floor_height_mm": _length(),
         "cart_size_mm": _length(positive=True, size=3),
@@ -119,6 +146,7 @@ SECTIONS: dict[str, dict[str, Rule]] = {
         "source_housing_mm": _length(positive=True, size=3),
         "detector_thickness_mm": _length(positive=True),
     },
+    "motion": _rates(ALL_JOINTS),
 }
 
 #: The two alternative key sets of ``[setup]``: the table pose in the source frame, or the DH constants.
@@ -155,9 +183,28 @@ def _check_section(data: dict, section: str, file: str) -> None:
             _check_section(value, _join(section, key), file)
         elif key in rules:
             check_value(rules[key], value, f"{file}: [{section}] {key}" if section else f"{file}: {key}")
+        elif (rule := _named_joint_rule(section, key)) is not None:  # a mount's joint: the loader checks the name
+            check_value(rule, value, f"{file}: [{section}] {key}")
         else:
             kind = "section" if isinstance(value, dict) else "key"
             raise PresetError(f"{file}: unknown {kind} {key!r} in {where}{_nearest(key, set(rules) | subsections)}")
+
+
+#: Keys of ``[motion]`` and ``[calibration]`` for a joint the schema cannot list: a mount's joints are named by
+#: the preset (``[mount.joints.<name>]``); the loader refuses a name that is no joint of the system.
+_NAMED_JOINT_KEYS = {
+    "motion": re.compile(r"(?P<joint>[A-Za-z]\w*?)_(?P<rest>(speed|acceleration)_(mm|deg)_s2?)"),
+    "calibration": re.compile(r"(?P<joint>[A-Za-z]\w*?)_(?P<rest>zero_offset_(mm|deg))"),
+}
+
+
+def _named_joint_rule(section: str, key: str) -> Rule | None:
+    """The rule of ``key`` in ``[motion]`` or ``[calibration]`` for a joint named by the preset (that of the same
+    key of a standard joint with the same unit), or None."""
+    match = _NAMED_JOINT_KEYS[section].fullmatch(key) if section in _NAMED_JOINT_KEYS else None
+    if match is None:
+        return None
+    return next((rule for name, rule in SECTIONS[section].items() if name.endswith("_" + match["rest"])), None)
 
 
 def _check_named(data: dict, section: str, name: str, file: str) -> None:

@@ -16,11 +16,13 @@ from carmkin.model.params import PRISMATIC, BodyGeometry, JointRange
 from carmkin.model.system import CArmSystem
 from carmkin.model.table_joints import standard_joints
 
-from .schema import MM
+from .schema import DEG, MM
 
 
 def to_toml(system: CArmSystem) -> str:
-    """The preset text of ``system``: ``[carm]``, ``[setup]`` (DH constants), ``[table]``, ``[body]``."""
+    """The preset text of ``system``: ``[carm]``, ``[setup]`` (DH constants), ``[table]``, ``[body]``,
+    ``[calibration]`` when the system carries a calibration that is not nominal, and ``[motion]`` when it has
+    joint speeds."""
     import tomlkit  # only here: loading does not need it
 
     if not isinstance(system, CArmSystem):
@@ -50,6 +52,10 @@ def to_toml(system: CArmSystem) -> str:
         document["mount"] = _mount(system)
         if "carm_base_origin_mm" in document["mount"]:
             del document["setup"]  # derived from the mount's C-arm base at rest, as the preset stated it
+    if not system.calibration.is_nominal:
+        document["calibration"] = _calibration(system)
+    if system.motion is not None:
+        document["motion"] = _motion(system)
     return tomlkit.dumps(document)
 
 
@@ -93,6 +99,15 @@ def _mount(system: CArmSystem) -> dict:
     return keys
 
 
+def _calibration(system: CArmSystem) -> dict[str, float]:
+    """``[calibration]``: every joint's zero offset (mm, deg), the detector rotation (deg) and the sag (mm)."""
+    calibration = system.calibration
+    keys = {f"{name}_zero_offset_{'mm' if prismatic else 'deg'}": (_mm if prismatic else math.degrees)(offset)
+            for name, prismatic, offset in zip(system.joint_names, system.prismatic, calibration.offsets(system.nq))}
+    return {**keys, "detector_rotation_deg": math.degrees(calibration.detector_rotation),
+            "sag_cos_mm": _mm(calibration.sag_cos), "sag_sin_mm": _mm(calibration.sag_sin)}
+
+
 def _table_joints(joints) -> dict:
     """``[table.joints]`` of standard joints: ranges, ``up_in_table`` and ``pivot_mm``."""
     by_name = {joint.name: joint for joint in joints}
@@ -105,3 +120,19 @@ def _table_joints(joints) -> dict:
     for joint in joints:
         keys.update(_limits(joint.range, joint.prismatic))
     return keys
+
+
+def _motion(system: CArmSystem) -> dict[str, float]:
+    """``[motion]``: each joint's speed and (when known) acceleration in mm or degrees per s and s²."""
+    keys = {}
+    for joint, prismatic in zip(system.motion.joints, system.prismatic):
+        unit, convert = ("mm", _mm) if prismatic else ("deg", _deg)
+        keys[f"{joint.name}_speed_{unit}_s"] = convert(joint.speed)
+        if joint.acceleration is not None:
+            keys[f"{joint.name}_acceleration_{unit}_s2"] = convert(joint.acceleration)
+    return keys
+
+
+def _deg(radians: float) -> float:
+    """Degrees by dividing by the loader's factor (π/180), so that the loader's product gives the value back."""
+    return radians / DEG

@@ -39,6 +39,7 @@ from carmkin.errors import (
     GuidanceError,  # noqa: F401 (defined there, raised here)
 )
 
+from carmkin.model.motion import Duration, Timing, system_move
 from carmkin.validation import real_array, real_scalar, rigid_transform
 from carmkin.world import DEFAULT_MARGIN, DEFAULT_ORDER, DEFAULT_PATH_CLEARANCE, Swept
 from carmkin.world import World as CollisionWorld
@@ -215,7 +216,10 @@ class GuidanceStep:
     plus ``stop_sigmas`` sd below its threshold, on a well-conditioned estimate; ``joint``: index of the
     joint to move next (``None`` when done or blocked); ``move``: its signed move (m or rad); ``sweep``: the
     path check of that move (:class:`carmkin.world.Swept`); ``blocked``: why no joint can move, or why arrival cannot be confirmed
-    (``None`` otherwise); ``rms_px`` and ``ill_conditioned``: of the measurement (NaN / False for a bare pose).
+    (``None`` otherwise); ``rms_px`` and ``ill_conditioned``: of the measurement (NaN / False for a bare pose);
+    ``duration``: the time of this step's move (that joint alone, from rest to rest, at the model's joint
+    speeds; None when no joint moves) and ``remaining_duration``: of every remaining move, joint by joint
+    (:class:`carmkin.model.motion.Duration`; unknown, with the reason, without joint speeds).
     """
 
     q: np.ndarray
@@ -229,6 +233,8 @@ class GuidanceStep:
     sd: np.ndarray | None = None
     rms_px: float = float("nan")
     ill_conditioned: bool = False
+    duration: Duration | None = None
+    remaining_duration: Duration | None = None
 
 
 class Guide:
@@ -277,7 +283,8 @@ class Guide:
             covariance += reading_covariance(self.model, q, estimate.covariance)
         sd = np.sqrt(np.diag(covariance))
         info = dict(sd=sd, rms_px=estimate.rms_px if estimate else float("nan"),
-                    ill_conditioned=bool(estimate and estimate.ill_conditioned))
+                    ill_conditioned=bool(estimate and estimate.ill_conditioned),
+                    remaining_duration=system_move(self.model, q, self.q_goal, Timing.JOINT_BY_JOINT))
         margin = self.options.stop_sigmas * sd
         # a joint whose uncertainty alone fills its threshold cannot be confirmed by moving it closer
         unresolved = (margin >= self.thresholds) | (sd > self.options.max_sd_fraction * self.thresholds)
@@ -301,7 +308,8 @@ class Guide:
             target[j] = self.q_goal[j]
             check = self.world.swept(q, target, margin=self.options.path_clearance, stop_at_contact=True)
             if check.clear:
-                return GuidanceStep(q, remaining, False, j, float(remaining[j]), check, skipped=tuple(skipped), **info)
+                return GuidanceStep(q, remaining, False, j, float(remaining[j]), check, skipped=tuple(skipped),
+                                    duration=system_move(self.model, q, target), **info)
             skipped.append((self.model.joint_names[j], _contact(self.world, check)))
         reason = "; ".join(f"{name}: {why}" for name, why in skipped)
         return GuidanceStep(q, remaining, False, blocked=f"no joint can move all the way: {reason}",

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from carmkin.errors import SweepError
+from carmkin.model import motion
 from carmkin.model.system import require_system
 from carmkin.validation import flag, real_array, real_scalar, target_point
 
@@ -97,7 +98,11 @@ class Sweep:
     ``margin`` (m); ``frame_clearance`` (n,) smallest pair distance at each frame (m, NaN where not checked);
     ``limiting_joint`` with ``joint_extent`` (φ_min, φ_max) rad allowed by the joint ranges
     on this trajectory; ``short_scan`` (:class:`ShortScan`); ``failure`` (:class:`SweepFailure`, None on
-    success); ``success``.
+    success); ``success``; ``approach`` (:class:`~carmkin.model.motion.Duration`): the synchronized move from
+    ``q_start`` to the first frame (unknown, with the reason, without ``q_start`` or joint speeds; not
+    checked for collision); ``timing`` (:class:`~carmkin.model.motion.FollowCheck`): whether the joints follow
+    the arc at the asked acquisition time, the fastest they follow, and the sweep's duration with the run-up
+    and stop (None when a frame has no joints in range).
     """
 
     system: object
@@ -121,6 +126,8 @@ class Sweep:
     frame_clearance: np.ndarray
     failure: SweepFailure | None = None
     obstacles: tuple = field(default=())
+    approach: motion.Duration | None = None
+    timing: motion.FollowCheck | None = None
 
     @property
     def success(self) -> bool:
@@ -171,8 +178,23 @@ class Sweep:
                  f"joint ranges allow φ = {math.degrees(self.joint_extent[0]):+.1f}° … "
                  f"{math.degrees(self.joint_extent[1]):+.1f}° (limited by {self.limiting_joint})",
                  f"short scan: {self.short_scan}"]
+        lines += _timing_lines(self)
         lines.append("feasible" if self.success else f"NOT feasible: {self.failure}")
         return "\n".join(lines)
+
+
+def _timing_lines(sweep: Sweep) -> list[str]:
+    """The approach and the sweep's timing for people (s)."""
+    lines = [f"approach: {sweep.approach}"] if sweep.approach is not None else []
+    timing = sweep.timing
+    if timing is None:
+        return lines + ["timing: none (a frame has no joints in range)"]
+    lines.append(f"timing: {timing}")
+    if timing.duration is not None:
+        acquisition = timing.duration - timing.run_up - timing.run_out
+        lines.append(f"sweep duration {timing.duration:.1f} s (run-up {timing.run_up:.1f} s, acquisition "
+                     f"{acquisition:.1f} s, stop {timing.run_out:.1f} s)")
+    return lines
 
 
 def _clearance_line(sweep: Sweep) -> str:
@@ -256,7 +278,8 @@ def _worst(system, q: np.ndarray) -> str | None:
 
 def plan_sweep(system, target, arc_deg: float = 190.0, n_views: int = 100, patient=None, q_start=None, *,
                joint="orbital", distance: float | None = None, compensate: bool = True,
-               margin: float = DEFAULT_MARGIN, tolerance: float = DEFAULT_TOLERANCE) -> Sweep:
+               margin: float = DEFAULT_MARGIN, tolerance: float = DEFAULT_TOLERANCE,
+               acquisition_time_s: float | None = None) -> Sweep:
     """Plan a sweep of ``n_views`` frames over ``arc_deg`` degrees about ``joint`` around ``target``.
 
     ``target`` (3,) m in the table frame; ``patient``: the toolkit's patient model
@@ -270,6 +293,9 @@ def plan_sweep(system, target, arc_deg: float = 190.0, n_views: int = 100, patie
     certified by conservative advancement (``tolerance``: how far below the true minimum the reported
     swept clearance may be, m). An arc that does not fit is not an exception: ``success`` is False and
     ``failure`` names the joint limit, contact or unreachable pose, where, and the largest feasible arc.
+    ``acquisition_time_s`` (s, > 0): the time the views are acquired over; ``timing`` then says whether the
+    joints can follow it (speed and acceleration, :func:`carmkin.model.motion.follow`) and, if not, which
+    joint and by how much — as data, not an exception (the sweep's clearance is unaffected).
     """
     require_system(system, SweepError)
     target = target_point(target, "target", error=SweepError)
@@ -279,6 +305,8 @@ def plan_sweep(system, target, arc_deg: float = 190.0, n_views: int = 100, patie
         raise SweepError(f"n_views must be an integer in [2, {MAX_VIEWS}], got {n_views!r}")
     margin = real_scalar(margin, "margin", error=SweepError, low=0.0, high=1.0, unit="m")
     tolerance = real_scalar(tolerance, "tolerance", error=SweepError, low=1e-6, high=0.1, unit="m")
+    if acquisition_time_s is not None:
+        acquisition_time_s = motion.check_acquisition_time(acquisition_time_s, SweepError)
     distance = system.carm.source_to_orbital_axis if distance is None else real_scalar(
         distance, "distance", error=SweepError, low=1e-3, high=10.0, unit="m")
     obstacles = _patient(patient, system)
@@ -334,16 +362,33 @@ def plan_sweep(system, target, arc_deg: float = 190.0, n_views: int = 100, patie
         first = SweepFailure(first.kind, first.angle, first.frame, _largest_run(phi, frame_ok, seg_ok), first.joint,
                              first.pair, first.distance)
     poses = system.fk(np.where(np.isfinite(q), q, 0.0), check_units=False)
-    from carmkin.imaging.projection import intrinsics
+    from carmkin.imaging.projection import view_intrinsics
 
-    K, _ = intrinsics(system)
+    K = view_intrinsics(system, np.where(np.isfinite(q), q, 0.0))  # H K per view for a calibrated system
     R_t = np.transpose(poses[:, :3, :3], (0, 2, 1))
-    P = K[None] @ np.concatenate((R_t, -R_t @ poses[:, :3, 3:4]), axis=2)
+    P = K @ np.concatenate((R_t, -R_t @ poses[:, :3, 3:4]), axis=2)
     # The swept minimum of the whole arc: defined only where every frame has joints in range (else NaN).
     bound = bound if np.all(ok) and np.isfinite(bound) else math.nan
     return Sweep(system, q, phi, poses, P, target, float(distance), bool(compensate), w, q_plain, drift,
                  float(bound), float(sampled), samples, float(margin), limiting, extent,
-                 ShortScan(arc, fan), frame_clearance, first, obstacles)
+                 ShortScan(arc, fan), frame_clearance, first, obstacles, *_timing(system, q, q_start, ok,
+                                                                                  acquisition_time_s))
+
+
+#: Why a sweep has no approach time.
+NO_START = "no q_start: the sweep has no approach move"
+NO_FIRST_FRAME = "the first frame has no joints in range"
+
+
+def _timing(system, q: np.ndarray, q_start, ok: np.ndarray, acquisition_time_s):
+    """``(approach, timing)`` of a sweep (see :class:`Sweep`)."""
+    if q_start is None or not ok[0]:
+        approach = motion.unknown(reason=NO_START if q_start is None else NO_FIRST_FRAME)
+    else:
+        approach = motion.system_move(system, np.asarray(q_start, float), q[0])
+    if not np.all(ok):
+        return approach, None
+    return approach, motion.follow(system.motion, q, acquisition_time_s, system.prismatic)
 
 
 def _largest_run(phi, frame_ok, seg_ok) -> tuple[float, float] | None:

@@ -11,6 +11,12 @@
   about the axis and the integer-degree (primary, secondary) grid directions of the patient in that band,
   so the answer is never farther than the nearest reachable cell of an integer-degree map.
 
+A reachable plan reports its ``duration`` (:class:`carmkin.model.motion.Duration`): with ``q_current``, the
+time of its joint-by-joint moves at the system's joint speeds (one joint after another, each from rest to
+rest: the order the moves are certified in; the whole sequence to ``plan.q``, also when a move is blocked; the synchronized time, every joint at once, is
+``carmkin.model.motion.move_duration(system.motion, q_current, plan.q)``); unknown, with the reason, without
+``q_current`` or without joint speeds.
+
 Lengths in m, angles in rad (the reason texts speak mm and degrees).
 """
 
@@ -23,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from carmkin.errors import PatientModelError, ViewError
+from carmkin.model import motion
 from carmkin.validation import real_array, real_scalar
 from carmkin.world import DEFAULT_MARGIN, DEFAULT_PATH_CLEARANCE, Move, Obstacle, World  # noqa: F401 (Move: views.Move)
 from carmkin.world.obstacles import as_obstacles
@@ -32,6 +39,8 @@ from .view import View, _patient_frame
 
 #: Clearance (m) kept along the swept moves (below the margin, so the goal's neighbourhood is reachable).
 PATH_CLEARANCE = DEFAULT_PATH_CLEARANCE
+#: Why a plan without ``q_current`` has no duration.
+NO_MOVE = "no q_current: the plan has no move to time"
 #: A patient may rest on the table top but not sink into it by more than this (m).
 PATIENT_TABLE_TOLERANCE = 0.001
 #: Angular band (rad) of the nearest-view search, and its last angle.
@@ -52,7 +61,8 @@ class ViewPlan:
     form"`` or ``"qp"`` (a motorized table's joints freed, :mod:`carmkin.views.refine`). Reachable plans also
     carry ``x_axis`` (3,) the roll chosen (the source frame's x axis, table frame), ``clearance_to`` the exact
     clearance (m) to each of ``"patient"`` (every obstacle), ``"table"`` and ``"floor"``, and ``validity``
-    the :class:`~carmkin.robot.validity.ValidityReport` at the margin."""
+    the :class:`~carmkin.robot.validity.ValidityReport` at the margin, and ``duration`` (:class:`Duration
+    <carmkin.model.motion.Duration>`): the time of the moves from ``q_current`` (see the module docstring)."""
 
     view: View
     success: bool
@@ -68,6 +78,7 @@ class ViewPlan:
     x_axis: np.ndarray | None = None
     clearance_to: dict | None = None
     validity: object = None
+    duration: motion.Duration | None = None
 
 
 def patient_obstacles(patient) -> tuple:
@@ -209,6 +220,9 @@ def plan_view(system, view, patient=None, q_current=None, *, margin: float = DEF
         plan = _with_report(plan, system, world, margin)
     if plan.success and q_current is not None:
         plan = _with_moves(plan, system, world, q_ref)
+    if plan.success:
+        plan = _replace(plan, duration=motion.unknown(motion.Timing.JOINT_BY_JOINT, NO_MOVE) if q_current is None
+                        else motion.system_move(system, q_ref, plan.q, motion.Timing.JOINT_BY_JOINT))
     if not plan.success and nearest:
         plan = _with_nearest(plan, ctx, view, patient)
     return plan

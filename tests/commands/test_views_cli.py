@@ -20,6 +20,15 @@ def test_plan_prints_joints_and_clearance(capsys):
     assert "30.0° LAO, 20.0° CRA" in out and "clearance" in out and "wigwag=" in out
 
 
+def test_plan_from_a_configuration_prints_how_long_the_moves_take(capsys):
+    assert main(["views", "plan", "--primary-deg", "20", "--secondary-deg", "10", "--q-mm-deg",
+                 "0,200,0,100,0,20", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["duration_s"] > 0
+    assert main(["views", "plan", "--primary-deg", "20", "--secondary-deg", "10", "--q-mm-deg", "0,200,0,100,0,20"]) == 0
+    assert f"moves take {data['duration_s']:.1f} s (joint by joint" in capsys.readouterr().out
+
+
 def test_plan_json_and_standard_view(capsys):
     assert main(["views", "plan", "--standard", "pelvis-inlet", "--json"]) == 0
     data = json.loads(capsys.readouterr().out)

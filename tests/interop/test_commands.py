@@ -45,5 +45,8 @@ def test_dicom_writes_datasets_and_finds_the_moves_back(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "table_translation +50.000 mm" in out and "angular +5.000°" in out and "orbital +15.000°" in out
     assert "-0.000" not in out  # rounding noise picks no sign
+    # from mid-range, every joint at once: the orbital's 15° at 1.5833°/s with 5°/s² (15/1.5833 + 1.5833/5 =
+    # 9.79 s) is the slowest (table 50 mm at 50 mm/s, 100 mm/s²: 1.5 s; angular 5°, a triangle: 2√(5/15) = 1.15 s)
+    assert "the moves take 9.8 s (synchronized, orbital the longest)" in out
     assert main(["dicom", "--read", str(xa), "--isocenter-mm", "100,-200,50"]) == 0
     assert "view from the XA positioner angles" in capsys.readouterr().out

@@ -84,6 +84,34 @@ def test_exact_guidance_reaches_the_goal_one_joint_at_a_time():
     assert len(moved) == len(set(moved)) <= 6  # each joint once
 
 
+def test_each_guidance_move_and_what_remains_are_timed():
+    """Each step moves one joint from rest to rest: t = d/v + v/a, or 2√(d/a) when short (by hand); the
+    remaining moves add up, one joint after another; the step times add up to the first step's remaining."""
+    def by_hand(j, d):
+        d = abs(d)
+        return d / j.speed + j.speed / j.acceleration if d >= j.speed ** 2 / j.acceleration \
+            else 2 * math.sqrt(d / j.acceleration)
+
+    q_start = np.zeros(6)
+    q_goal = np.array([0.1, 0.1, math.radians(5), 0.12, math.radians(15), math.radians(-10)])
+    guide = guidance.Guide(SYSTEM, SYSTEM.fk(q_goal), q_start)
+    q, total, first = q_start, 0.0, None
+    for _ in range(10):
+        step = guide.step(SYSTEM.fk(q))
+        remaining = sum(by_hand(j, d) for j, d in zip(SYSTEM.motion.joints, step.remaining))
+        assert step.remaining_duration.seconds == pytest.approx(remaining, rel=1e-9, abs=1e-9)
+        first = remaining if first is None else first
+        if step.done:
+            break
+        joint = SYSTEM.motion.joints[step.joint]
+        assert step.duration.seconds == pytest.approx(by_hand(joint, step.move), rel=1e-12)
+        assert step.duration.slowest == joint.name and str(step.duration).endswith(f"({joint.name} alone)")
+        total += step.duration.seconds
+        q = q.copy()
+        q[step.joint] += step.move
+    assert step.done and total == pytest.approx(first, rel=1e-6)
+
+
 def test_motorized_table_guidance_uses_the_one_solve():
     q_start = np.zeros(MOTORIZED.nq)
     q_goal = q_start.copy()

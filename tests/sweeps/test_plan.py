@@ -168,3 +168,53 @@ def test_the_toolkits_patient_model_is_accepted_as_its_obstacles():
     assert as_model.min_clearance == as_list.min_clearance
     with pytest.raises(SweepError, match="patient"):
         plan_sweep(PRESET, target, arc_deg=60.0, n_views=7, patient="a patient")
+
+
+# --- timing (issue 30: motion time) ----------------------------------------------------------------------
+def test_the_preset_sweep_takes_the_published_scan_time(preset_sweep):
+    """190° at the preset's 190°/120 s orbital speed: the fastest acquisition is 120 s, the orbital sets it;
+    run-up and stop at 5°/s² add (190/120)/5 s each."""
+    from carmkin.model.motion import Follow
+
+    timing = preset_sweep.timing
+    assert timing.status is Follow.NOT_ASKED and timing.joint == "orbital" and timing.quantity == "speed"
+    assert timing.minimum_time == pytest.approx(120.0, rel=1e-9)
+    assert timing.duration == pytest.approx(120.0 + 2 * (190 / 120) / 5, rel=1e-9)
+
+
+@pytest.mark.parametrize(("seconds", "follows", "ratio"), [(121.0, True, 120 / 121), (60.0, False, 2.0)])
+def test_a_sweep_at_an_acquisition_time_says_whether_the_joints_follow(seconds, follows, ratio):
+    from carmkin.model.motion import Follow
+
+    sweep = plan_sweep(PRESET, [0.0, 0.0, 0.0], arc_deg=190.0, n_views=100, acquisition_time_s=seconds)
+    assert sweep.success  # the clearance does not depend on the time
+    timing = sweep.timing
+    assert timing.status is (Follow.FOLLOWS if follows else Follow.TOO_FAST)
+    assert timing.joint == "orbital" and timing.quantity == "speed"
+    assert timing.ratio == pytest.approx(ratio, rel=1e-9)
+    assert ("cannot follow" in sweep.summary()) is not follows
+
+
+def test_the_approach_from_q_start_is_timed():
+    """From q_start (the C-arm lifted 100 mm, the table moved 50 mm) to the first frame, which puts the
+    target back on the axis: every joint at once, each d/v + v/a (or 2√(d/a) when short), the slowest sets it."""
+    q_start = np.zeros(PRESET.nq)
+    q_start[[0, 1, 5]] = 0.05, 0.1, math.radians(-95.0)
+    sweep = plan_sweep(PRESET, [0.0, 0.0, 0.0], arc_deg=190.0, n_views=20, q_start=q_start)
+    assert sweep.success
+
+    def by_hand(d, v, a):
+        d = abs(d)
+        return d / v + v / a if d >= v * v / a else 2 * math.sqrt(d / a)
+
+    times = [by_hand(b - a, j.speed, j.acceleration) for j, a, b in zip(PRESET.motion.joints, q_start, sweep.q[0])]
+    assert max(times) > 1.0  # something really moves back
+    assert sweep.approach.seconds == pytest.approx(max(times), rel=1e-12)
+    assert sweep.approach.slowest == PRESET.joint_names[int(np.argmax(times))]
+    assert plan_sweep(PRESET, [0.0, 0.0, 0.0], n_views=20).approach.seconds is None
+
+
+@pytest.mark.parametrize("value", [0.0, -5.0, float("nan"), "60", True])
+def test_a_bad_acquisition_time_is_refused(value):
+    with pytest.raises(SweepError, match="acquisition_time_s"):
+        plan_sweep(PRESET, [0.0, 0.0, 0.0], n_views=10, acquisition_time_s=value)

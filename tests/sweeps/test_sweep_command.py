@@ -46,6 +46,8 @@ def test_plan_with_patient_and_combined_joints(capsys):
     (["--patient-box-mm", "1,2"], "--patient-box-mm needs"),
     (["--astra", "out.txt"], "--astra"),
     (["--q-mm-deg", "1,2"], "--q-mm-deg needs 6"),
+    (["--acquisition-time-s", "0"], "--acquisition-time-s"),
+    (["--acquisition-time-s", "1e9"], "--acquisition-time-s"),
 ])
 def test_usage_errors_exit_2_in_one_line(argv, message, capsys):
     try:
@@ -55,3 +57,15 @@ def test_usage_errors_exit_2_in_one_line(argv, message, capsys):
     assert code == 2
     err = capsys.readouterr().err
     assert message in err and "Traceback" not in err and err.count("\n") == 1
+
+
+@pytest.mark.parametrize(("seconds", "code", "line"), [
+    ("150", 0, "the joints follow a 150.0 s acquisition (orbital at 80% of its speed limit, 1.27 °/s of 1.58 °/s)"),
+    ("60", 1, "the joints cannot follow a 60.0 s acquisition: orbital needs speed 3.17 °/s, its limit is 1.58 °/s "
+              "(2.00x)"),
+])
+def test_plan_at_an_acquisition_time_checks_the_joints_follow(seconds, code, line, capsys):
+    """190° at the preset's orbital 190°/120 s: 150 s is 80 % of its speed, 60 s twice it (exit 1)."""
+    assert main(["sweep", "plan", "--views", "20", "--acquisition-time-s", seconds]) == code
+    out = capsys.readouterr().out
+    assert line in out and "sweep duration" in out

@@ -107,6 +107,29 @@ def test_moves_from_q_current_are_swept():
     np.testing.assert_allclose(q, plan.q, atol=0)
 
 
+def _by_hand(d: float, v: float, a: float) -> float:
+    """One joint from rest to rest: d/v + v/a when it reaches its speed (d ≥ v²/a), else 2√(d/a)."""
+    d = abs(d)
+    return d / v + v / a if d >= v * v / a else 2 * math.sqrt(d / a)
+
+
+@pytest.mark.parametrize("name", ["6-DOF", "motorized"])
+def test_the_moves_duration_is_the_sum_of_each_joints_profile(name):
+    """The plan's moves go one joint after another, each from rest to rest: Σ_j t_j at the preset's speeds."""
+    system = SYSTEMS[name]
+    patient = ParametricPatient.on_table(system)
+    start = plan_view(system, "ap", patient).q
+    plan = plan_view(system, View.from_angles(30, 20, (0, 0, 0), patient), patient, q_current=start)
+    expected = sum(_by_hand(b - a, j.speed, j.acceleration) for j, a, b in zip(system.motion.joints, start, plan.q))
+    assert plan.duration.seconds == pytest.approx(expected, rel=1e-12) and expected > 0
+    moved = {m.joint for m in plan.moves}
+    assert {n for n, t in zip(system.joint_names, plan.duration.parts) if t > 0} == moved
+    # without speeds, or without q_current, the duration is unknown and says why
+    assert plan_view(system.replace(motion=None), plan.view, patient, q_current=start).duration.reason == \
+        "no joint speeds in the preset"
+    assert plan_view(system, plan.view, patient).duration.seconds is None
+
+
 def test_perpendicular_views_are_perpendicular():
     a, b = np.array([0.01, -0.05, 0.02]), np.array([0.05, -0.02, 0.09])
     views = View.perpendicular_to(a, b, count=12)
