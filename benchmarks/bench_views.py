@@ -10,6 +10,8 @@ per-view QP loop they replace.
 2. ``plan_view`` median over random views of the same grid.
 3. The QP after the closed form on the motorized preset (the cells of a 10° map the held table leaves
    unreachable).
+3b. The robot-held C-arm (``robotic-carm``, issue 30): its reach map (91 × 46 at 2°; --quick: 19 × 10 at 10°),
+   every cell by the QP with the robot's joints free, against a per-view ``qp_ik.solve`` loop on sampled cells.
 4. The polish between the samples (issue 31): reach_map with and without it, alternated in the same run.
 5. No slowdown from the one collision world (issue 27): ``reach_map`` (one process) and ``plan_view`` timed in
    fresh interpreters on today's code and on the code before the world (:data:`BASELINE_REV`), same grid, same
@@ -125,6 +127,7 @@ def main() -> None:
     print(row("plan_view median (no nearest-view search)", statistics.median(times), unit="ms"))
     polish_cost(system, patient, target, primary, secondary)
     qp_after_closed_form(target)
+    robot_held_map(target, 10 if args.quick else 2)
     against_previous_code(step)
 
 
@@ -191,6 +194,30 @@ def qp_after_closed_form(target) -> None:
         freed += plan_view(system, view, patient, nearest=False).solver == "qp"
     print(f"motorized table, 10° map: the QP after the closed form reaches {freed} of the {len(cells)} cells the held "
           f"table leaves unreachable ({(time.perf_counter() - start) / max(len(cells), 1):.2f} s a cell)")
+
+
+def robot_held_map(target, step: int) -> None:
+    """The reach map of the robot-held C-arm (every cell by the QP, the closed form holding the robot) against a
+    per-view ``qp_ik.solve`` loop (an AxisTarget at the isocentre distance) on sampled cells, scaled."""
+    system = carmkin.load_preset("robotic-carm")
+    patient = ParametricPatient.on_table(system)
+    primary, secondary = np.arange(-90, 91, step), np.arange(-45, 46, step)
+    start = time.perf_counter()
+    m = reach_map(system, target, primary, secondary, patient)
+    t_map = time.perf_counter() - start
+    rng = np.random.default_rng(1)
+    sample = [(rng.integers(len(primary)), rng.integers(len(secondary))) for _ in range(12)]
+    solved, start = 0, time.perf_counter()
+    for i, j in sample:
+        d = m.directions[i, j]
+        position = target - system.carm.orbital_offset * d
+        result = qp_ik.solve(system, qp_ik.AxisTarget(tuple(position), tuple(d)), obstacles=patient.obstacles())
+        solved += bool(result.success)
+    t_qp = (time.perf_counter() - start) / len(sample) * m.reachable.size
+    print(f"robotic-carm map {len(primary)} x {len(secondary)}: {int(m.reachable.sum())} of {m.reachable.size} cells "
+          f"reachable; per-view qp_ik.solve loop solved {solved} of {len(sample)} sampled cells")
+    print(row("robotic-carm: per-view qp_ik.solve loop (scaled to the map)", t_qp, unit="s"))
+    print(row("robotic-carm: reach_map (QP cells, default workers)", t_map, t_qp, unit="s"))
 
 
 if __name__ == "__main__":

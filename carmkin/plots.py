@@ -132,7 +132,7 @@ def _hull(points: np.ndarray) -> np.ndarray:
 def scene_figure(system, q, patient=None, target=None, path=None, title: str = "") -> Figure:
     """Two orthographic views of the table frame (m shown as mm): the side view (Z0 across, Y0 up the page: Y0
     points down) and the end view (X0 across): the table top, the patient's bodies (their bounding boxes' outlines),
-    the C-arm's DH frame origins joined in chain order, the X-ray beam from the source to the detector centre and
+    the C-arm's DH frame origins joined in chain order (after a mount's base and joint points), the X-ray beam from the source to the detector centre and
     the ``target`` (3,) m. ``patient``: None, a list of Obstacle or a model with ``obstacles()``.
 
     The closest pair of :class:`carmkin.world.World` (C-arm part against table top, patient or floor) is drawn
@@ -146,6 +146,13 @@ def scene_figure(system, q, patient=None, target=None, path=None, title: str = "
 
     q = np.asarray(q, dtype=float)
     frames = np.asarray(system.dh_frames(q))[:, :3, 3]
+    robot = np.zeros((0, 3))  # a mount's base and joint points, floor up (carmkin.model.mount_joints)
+    if system.mount.joints:
+        rest = q.copy()
+        rest[1 + len(system.table.joints):system.nq - 5] = 0.0
+        base = system.base_motion(rest) @ np.append(system.mount.base_origin, 1.0)
+        moved = [F @ np.append(j.point, 1.0) for F, j in zip(system.mount_frames(q), system.mount.twists)]
+        robot = np.array([base] + moved)[:, :3]
     T = np.asarray(system.fk(q))
     source = T[:3, 3]
     detector = source + system.carm.source_to_detector * T[:3, 2]
@@ -172,8 +179,10 @@ def scene_figure(system, q, patient=None, target=None, path=None, title: str = "
             hit = name in collided
             ax.add_patch(Polygon(outline, closed=True, facecolor=SCENE_COLOURS[kind], alpha=0.5, label=kind, gid=name,
                                  edgecolor=SCENE_COLOURS["collision"] if hit else "k", lw=2.0 if hit else 0.5))
-        chain = np.vstack((np.zeros(3), frames, source)) * 1e3
+        chain = np.vstack((np.zeros(3) if not len(robot) else robot[-1], frames, source)) * 1e3
         ax.plot(chain[:, axis], chain[:, 1], "-o", color=SCENE_COLOURS["carm"], ms=3, lw=2, label="C-arm (DH frames)")
+        if len(robot):
+            ax.plot(robot[:, axis] * 1e3, robot[:, 1] * 1e3, "-o", color="k", ms=3, lw=3, label="mount (robot axes)")
         beam = np.vstack((source, detector)) * 1e3
         ax.plot(beam[:, axis], beam[:, 1], "--", color=SCENE_COLOURS["beam"], lw=1.5, label="beam")
         ax.plot(*beam[1, [axis, 1]], "s", color=SCENE_COLOURS["beam"], ms=7, label="detector")

@@ -24,6 +24,11 @@ from carmkin.presets.schema import SECTIONS
 
 BUILTIN = (carmkin.presets._preset_dir() / "siremobile-iso-c3d.toml").read_text()
 MOTORIZED = (carmkin.presets._preset_dir() / "siremobile-iso-c3d-motorized-table.toml").read_text()
+ROBOTIC = (carmkin.presets._preset_dir() / "robotic-carm.toml").read_text()
+#: What a "source:" comment must cite: the dissertation (a § or a Table), a paper by its PubMed id (joint speeds,
+#: which the dissertation does not give), or a named public document (a file of a public repository cited in the
+#: preset's header, e.g. ROS-Industrial's KUKA URDF, or the pyskindose dose reports).
+CITED = r"dissertation (Table \d\.\d|§\d\.\d)|PMID \d+|\w\.(xacro|urdf|yaml)\b|pyskindose"
 #: Relative and absolute tolerance of a TOML round trip (m, rad): the mm/deg conversions round by a few ulp.
 ROUND_TRIP_REL, ROUND_TRIP_ABS = 1e-12, 1e-15
 
@@ -38,8 +43,10 @@ def _with_line(section: str, line: str, text: str = BUILTIN) -> str:
 
 
 def _set(section: str, key: str, value: str) -> str:
-    """The built-in preset (the motorized one for ``[table.joints]``) with ``key = value`` in ``[section]``."""
-    text = MOTORIZED if section == "table.joints" else BUILTIN
+    """The built-in preset (the motorized one for ``[table.joints]``, the robotic one for ``[mount…]``, its first
+    joint for the named joints' ``mount.joints.*``) with ``key = value`` in ``[section]``."""
+    text = MOTORIZED if section == "table.joints" else ROBOTIC if section.startswith("mount") else BUILTIN
+    section = section.replace("*", "robot_a1")
     line = f"{key} = {value}"
     if re.search(rf"(?m)^{key} = ", text):  # every key name occurs once in a preset file
         return re.sub(rf"(?m)^{key} = [^#\n]*", lambda _: line + " ", text)
@@ -97,7 +104,7 @@ def test_a_bad_edit_is_a_preset_error_naming_file_key_and_expectation(text, old,
        st.sampled_from(["1.0", "true", '"x"', "[1, 2]", "{ a = 1 }"]))
 def test_any_unknown_key_in_any_section_is_refused(section, key, value):
     subsections = {s.rpartition(".")[2] for s in SECTIONS if s and s.rpartition(".")[0] == section}
-    assume(key not in SECTIONS[section] and key not in subsections)
+    assume(key not in SECTIONS[section] and key not in subsections and "*" not in subsections)
     with pytest.raises(PresetError, match=re.escape(repr(key))):
         parse_preset(_set(section, key, value), source="junk.toml")
 
@@ -161,7 +168,7 @@ def test_every_number_of_the_builtin_presets_has_a_stated_provenance(name):
         if p.kind == "source":
             # the dissertation, a cited public document, or (joint speeds, which it does not give) a paper found
             # by its PubMed id
-            assert re.search(CITABLE + r"|PMID \d+", p.note), f"{key}: {p.note}"
+            assert re.search(CITABLE + "|" + CITED, p.note), f"{key}: {p.note}"
 
 
 def test_provenance_names_the_file_each_value_came_from(tmp_path):

@@ -45,10 +45,12 @@ class ClosedFormIK:
     :func:`carmkin.analytic_ik.solver_for`)."""
 
     def __init__(self, system) -> None:
-        if system.table.joints:
+        if system.table.joints or system.mount.joints:
+            extra = [("extra table joints", system.table.joints), ("mount joints", system.mount.joints)]
             raise UnsupportedSystemError(
-                "the closed-form IK covers the 6-DOF chain of §4.3; this system has extra table joints "
-                f"({', '.join(j.name for j in system.table.joints)}): use carmkin.qp_ik"
+                "the closed-form IK covers the 6-DOF chain of §4.3; this system has "
+                + " and ".join(f"{what} ({', '.join(j.name for j in joints)})" for what, joints in extra if joints)
+                + ": use carmkin.qp_ik"
             )
         self._system = weakref.ref(system)  # the per-system cache must not keep the system alive
         fk = system.closed_form

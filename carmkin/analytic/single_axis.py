@@ -25,6 +25,7 @@ from carmkin.errors import (
     TableIKError,  # noqa: F401 (defined there, raised here)
 )
 from carmkin.model.kinematics import check_configuration
+from carmkin.model.mount_joints import MountGeometry
 from carmkin.model.params import TableSetup
 from carmkin.model.system import CArmSystem
 from carmkin.transforms import check_rigid_transform, inverse, rotation_between
@@ -60,7 +61,8 @@ class SingleAxisResult:
 
 
 def equivalent_chain(system: CArmSystem, active: str, q_held) -> tuple[CArmSystem, np.ndarray, int]:
-    """The paper's 6-DOF chain equivalent to ``system`` with only ``active`` moving among the table joints.
+    """The paper's 6-DOF chain equivalent to ``system`` with only ``active`` moving among the table joints
+    (a mount's joints, if any, held as well).
 
     ``q_held`` (nq,) gives the held joints (its value of ``active`` and of the C-arm joints is ignored).
     Returns ``(system6, T_equivalent_table, index)``: a 6-DOF system whose d0 is the active joint, the pose
@@ -90,6 +92,8 @@ def equivalent_chain(system: CArmSystem, active: str, q_held) -> tuple[CArmSyste
     else:  # e^{-ξ q} = Trans(-q u); moved to the left of E_before it becomes Trans(-q R_before u)
         w = -before[:3, :3] @ np.asarray(joints[index - 1].axis)
     C = system.table_motion(values)
+    if system.mount.joints:  # held too: G(q_mount) follows the table's motion (carmkin.model.mount_joints)
+        C = C @ system.mount_motion(system.mount_part(q_held))
     C[2, 3] += d0
     T_table_cart = C @ system.carm_base_pose
     R = rotation_between((0.0, 0.0, 1.0), w)
@@ -99,7 +103,7 @@ def equivalent_chain(system: CArmSystem, active: str, q_held) -> tuple[CArmSyste
     setup = TableSetup.from_pose(inverse(T_equivalent_cart))
     active_range = system.joint_ranges[index]
     table = replace(system.table, joints=(), translation=replace(active_range, name="table_translation"))
-    return system.replace(setup=setup, table=table), T_equivalent_table, index
+    return system.replace(setup=setup, table=table, mount=MountGeometry()), T_equivalent_table, index
 
 
 def solve_single_axis(system: CArmSystem, T, active: str, q_held, q_current=None) -> SingleAxisResult:

@@ -64,10 +64,11 @@ def system_from_args(args: argparse.Namespace) -> CArmSystem:
 def require_six_joints(system: CArmSystem, command: str, alternative: str) -> None:
     """:class:`NotApplicableError` unless ``system`` is the paper's 6-joint chain (the closed forms' domain)."""
     if system.nq != 6:
-        extra = system.joint_names[1:1 + system.nq - 6]  # the table joints between d0 and the C-arm
+        extra = system.joint_names[1:1 + system.nq - 6]  # the table's and a mount's joints between d0 and the C-arm
+        what = "extra table joints" if not system.mount.joints else "extra table and mount joints"
         raise NotApplicableError(
             f"{command} uses the closed form of the paper's 6-joint chain; preset {system.name!r} has "
-            f"{system.nq} joints (extra table joints {', '.join(extra)}): {alternative}")
+            f"{system.nq} joints ({what} {', '.join(extra)}): {alternative}")
 
 
 # --- joint vectors --------------------------------------------------------------------------------------

@@ -256,8 +256,12 @@ def isocenter_in_frame2(system) -> np.ndarray:
 
 
 def equipment_axes(system, q) -> np.ndarray:
-    """Isocentre axes (3, 3, columns X, Y, Z) in the table frame, fixed to the C-arm base (DH frame 2)."""
+    """Isocentre axes (3, 3, columns X, Y, Z) in the table frame, fixed to the C-arm base (DH frame 2); on a
+    mount (a robot holding the C) to that frame with the mount at rest, so that they stay fixed to the room."""
     q = _configuration(system, q)
+    if system.mount.joints:
+        q = q.copy()
+        q[1 + len(system.table.joints):system.nq - 5] = 0.0
     return system.dh_frames(q)[1][:3, :3] @ isocenter_in_frame2(system)
 
 

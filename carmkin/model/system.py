@@ -17,6 +17,7 @@ from . import kinematics
 from .bounds import MAX_ANGLE, MAX_LENGTH, check_joint_limits
 from .calibration import Calibration
 from .motion import Motion
+from .mount_joints import MountGeometry
 from .params import (
     JOINT_NAMES,
     PRISMATIC,
@@ -45,6 +46,8 @@ class CArmSystem:
 
     The joint vector is ``q = [d0, d1, theta2, d3, theta4, theta5]`` (m, m, rad, m, rad, rad): table
     translation, vertical, wigwag, horizontal, angular, orbital. Poses are expressed in the table frame 0.
+    A motorized table's joints (``table``) follow d0, then a mount's joints (``mount``, e.g. the robot that
+    holds the C), then the C-arm's five: ``[d0, table joints…, mount joints…, d1, θ2, d3, θ4, θ5]``.
     """
 
     carm: CArmGeometry
@@ -56,10 +59,13 @@ class CArmSystem:
     #: Joint speeds and accelerations (:mod:`carmkin.model.motion`), one per joint in the order of q; None
     #: when the preset gives none (plans then report no duration).
     motion: Motion | None = None
+    #: What carries the C-arm base: a robot's joints (:mod:`carmkin.model.mount_joints`); none by default.
+    mount: MountGeometry = field(default_factory=MountGeometry)
 
     def __post_init__(self) -> None:
         for name, kind in (("carm", CArmGeometry), ("setup", TableSetup), ("table", TableGeometry),
-                           ("body", BodyGeometry), ("name", str), ("calibration", Calibration)):
+                           ("body", BodyGeometry), ("name", str), ("calibration", Calibration),
+                           ("mount", MountGeometry)):
             if not isinstance(getattr(self, name), kind):
                 raise InvalidParameterError(
                     f"CArmSystem.{name} must be a {kind.__name__}, got {type(getattr(self, name)).__name__} "
@@ -74,15 +80,15 @@ class CArmSystem:
 
     def replace(self, **changes) -> "CArmSystem":
         """A new system with some fields replaced, e.g. ``system.replace(carm=..., setup=...)``. A new
-        ``table`` whose joints differ keeps the joint speeds (:attr:`motion`) by joint name, or none when a
-        joint has none (give ``motion=`` to set them)."""
+        ``table`` (or ``mount``) whose joints differ keeps the joint speeds (:attr:`motion`) by joint name, or none
+        when a joint has none (give ``motion=`` to set them)."""
         names = [f.name for f in dataclasses.fields(self)]
         for key in changes:
             if key not in names:
                 hint = difflib.get_close_matches(key, names, n=1)
                 raise InvalidParameterError(f"CArmSystem.replace: unknown field {key!r}"
                                             + (f"; did you mean {hint[0]!r}?" if hint else f"; fields: {', '.join(names)}"))
-        if "motion" not in changes and self.motion is not None and ("table" in changes):
+        if "motion" not in changes and self.motion is not None and ("table" in changes or "mount" in changes):
             # the joints may change: keep each remaining joint's speed by name (none if a new joint has none)
             names = dataclasses.replace(self, **changes, motion=None).joint_names
             changes["motion"] = self.motion.for_joints(names)
@@ -91,29 +97,74 @@ class CArmSystem:
     # --- joints ---------------------------------------------------------------------------------------
     @property
     def nq(self) -> int:
-        """Number of joints: 6, plus the extra joints of a motorized table (:mod:`carmkin.model.table_joints`)."""
-        return 6 + len(self.table.joints)
+        """Number of joints: 6, plus the extra joints of a motorized table (:mod:`carmkin.model.table_joints`)
+        and the joints of a mount (:mod:`carmkin.model.mount_joints`)."""
+        return 6 + len(self.table.joints) + len(self.mount.joints)
 
     @property
     def joint_names(self) -> tuple[str, ...]:
-        """Names of the joints in the order of q: table translation, extra table joints (top down), C-arm."""
-        return JOINT_NAMES[:1] + tuple(j.name for j in self.table.joints) + JOINT_NAMES[1:]
+        """Names of the joints in the order of q: table translation, extra table joints (top down), mount joints
+        (floor up), C-arm."""
+        return (JOINT_NAMES[:1] + tuple(j.name for j in self.table.joints) + tuple(j.name for j in self.mount.joints)
+                + JOINT_NAMES[1:])
 
     @property
     def joint_ranges(self) -> tuple[JointRange, ...]:
         """Ranges of the joints, in the order of q (m or rad)."""
-        return (self.table.translation,) + tuple(j.range for j in self.table.joints) + self.carm.joint_ranges
+        return ((self.table.translation,) + tuple(j.range for j in self.table.joints)
+                + tuple(j.range for j in self.mount.joints) + self.carm.joint_ranges)
 
     @property
     def prismatic(self) -> tuple[bool, ...]:
         """True for each prismatic joint (m), False for each revolute one (rad), in the order of q."""
-        return PRISMATIC[:1] + tuple(j.prismatic for j in self.table.joints) + PRISMATIC[1:]
+        return (PRISMATIC[:1] + tuple(j.prismatic for j in self.table.joints)
+                + tuple(j.prismatic for j in self.mount.joints) + PRISMATIC[1:])
 
     def split(self, q) -> tuple[np.ndarray, np.ndarray]:
-        """``(q6, q_table)``: the paper's six joints and the extra table joints of q (nq,) or (N, nq)."""
+        """``(q6, q_table)``: the paper's six joints and the extra table joints of q (nq,) or (N, nq) (the mount
+        joints, between them, are :meth:`mount_part`)."""
         q = kinematics.check_configuration(q, self.nq)
         k = len(self.table.joints)
-        return np.concatenate((q[..., :1], q[..., 1 + k:]), axis=-1), q[..., 1:1 + k]
+        return np.concatenate((q[..., :1], q[..., -5:]), axis=-1), q[..., 1:1 + k]
+
+    def mount_part(self, q) -> np.ndarray:
+        """The mount joints' values of q (nq,) or (N, nq): (n,) or (N, n), floor up."""
+        q = kinematics.check_configuration(q, self.nq)
+        k = 1 + len(self.table.joints)
+        return q[..., k:k + len(self.mount.joints)]
+
+    def mount_motion(self, q_mount) -> np.ndarray:
+        """``G = e^{η1 q1} ··· e^{ηn qn}`` for mount joint values (n,) or (N, n): (4, 4) or (N, 4, 4), the motion
+        of the C-arm base in the rest table frame 0 (see :mod:`carmkin.model.mount_joints`)."""
+        from .mount_joints import chain
+
+        q_mount = np.asarray(q_mount, dtype=float)
+        if q_mount.ndim == 1:
+            return chain(self.mount.twists, q_mount)
+        return np.array([chain(self.mount.twists, v) for v in q_mount]).reshape(len(q_mount), 4, 4)
+
+    def base_motion(self, q) -> np.ndarray:
+        """``Tz(d0) · E(q_table) · G(q_mount)`` (4, 4) or (N, 4, 4) for q (nq,) or (N, nq): what carries the
+        C-arm base from its rest pose :attr:`carm_base_pose`, so that ``fk(q) = base_motion(q) · P(q6, d0 = 0)``."""
+        q6, q_table = self.split(q)
+        E = self.table_motion(q_table)
+        if self.mount.joints:
+            E = E @ self.mount_motion(self.mount_part(q))
+        E[..., 2, 3] += q6[..., 0]
+        return E
+
+    def mount_frames(self, q) -> np.ndarray:
+        """Poses (n, 4, 4) or (N, n, 4, 4) in the table frame of the mount bodies for q (nq,) or (N, nq): body i
+        at ``Tz(d0) · E(q_table) · e^{η1 q1} ··· e^{ηi qi}`` (the identity's orientation at rest, as the URDF's
+        ``<joint>_frame`` links)."""
+        from .mount_joints import partial_chains
+
+        q = kinematics.check_configuration(q, self.nq)
+        flat = q.reshape(-1, self.nq)
+        reference = self.base_motion(np.concatenate((flat[:, :1 + len(self.table.joints)],
+                                                     np.zeros((len(flat), len(self.mount.joints))), flat[:, -5:]), axis=1))
+        out = np.array([R @ partial_chains(self.mount.twists, v) for R, v in zip(reference, self.mount_part(flat))])
+        return out.reshape(q.shape[:-1] + (len(self.mount.joints), 4, 4))
 
     def table_motion(self, q_table: np.ndarray) -> np.ndarray:
         """``e^{-ξk qk} ··· e^{-ξ1 q1}`` for extra table joint values (k,) or (N, k): (4, 4) or (N, 4, 4).
@@ -127,24 +178,22 @@ class CArmSystem:
         return np.array([inverse_chain(self.table.joints, v) for v in q_table]).reshape(len(q_table), 4, 4)
 
     def _with_table_joints(self, q, poses_of_q6) -> np.ndarray:
-        """Poses ``Tz(d0) · E(q_table) · P(q6 with d0 = 0)`` for poses P computed by ``poses_of_q6``."""
-        q6, q_table = self.split(q)
-        d0 = q6[..., 0].copy()
+        """Poses ``Tz(d0) · E(q_table) · G(q_mount) · P(q6 with d0 = 0)`` for poses P computed by ``poses_of_q6``."""
+        q6, _ = self.split(q)
         q6 = q6.copy()
         q6[..., 0] = 0.0
-        E = self.table_motion(q_table)
-        E[..., 2, 3] += d0
+        E = self.base_motion(q)
         P = poses_of_q6(q6)
         return E[..., None, :, :] @ P if P.ndim == E.ndim + 1 else E @ P
 
     @property
     def lower(self) -> np.ndarray:
-        """Lower joint limits (6,)."""
+        """Lower joint limits (nq,)."""
         return np.array([r.lower for r in self.joint_ranges])
 
     @property
     def upper(self) -> np.ndarray:
-        """Upper joint limits (6,)."""
+        """Upper joint limits (nq,)."""
         return np.array([r.upper for r in self.joint_ranges])
 
     # --- closed-form kinematics ------------------------------------------------------------------------
@@ -217,34 +266,40 @@ class CArmSystem:
         values = plain_floats(q, self.nq, JOINT_VALUE_LIMIT)
         if values is not None:
             return np.array(self._fk_rows(values)).reshape(4, 4)
-        if self.table.joints:
+        if self.nq > 6:
             return self._with_table_joints(q, self._fk6)
         return self._fk6(kinematics.check_configuration(q))
 
     def _fk_rows(self, values: list[float]) -> list[float]:
         """The pose row-major (16 floats) for one configuration of Python floats:
-        ``Tz(d0) · E(q_table) · P(q6 with d0 = 0)`` with a motorized table, as :meth:`_with_table_joints`."""
+        ``Tz(d0) · E(q_table) · G(q_mount) · P(q6 with d0 = 0)`` with a motorized table or a mount, as
+        :meth:`_with_table_joints`."""
         steps = self._table_steps
         if not steps:
             return self.closed_form.rows(*values)
-        rows = self.closed_form.rows(0.0, *values[1 + len(steps):])
-        for joint, index in steps:
-            joint.apply_inverse_motion(rows, values[index])
+        rows = self.closed_form.rows(0.0, *values[-5:])
+        for apply, index in steps:
+            apply(rows, values[index])
         rows[11] += values[0]
         return rows
 
     @cached_property
     def _table_steps(self) -> tuple:
-        """``(joint, index in q)`` of the extra table joints in the order the scalar FK applies them: from
-        the floor up (the last of the chain first)."""
-        return tuple(reversed([(joint, 1 + i) for i, joint in enumerate(self.table.joints)]))
+        """``(apply, index in q)`` of the mount joints and the extra table joints in the order the scalar FK
+        applies them to the C-arm's pose: the last mount joint first (``e^{ηn qn}``, :meth:`MountJoint.apply_motion
+        <carmkin.model.mount_joints.MountJoint.apply_motion>`), then the table's from the floor up (the last of
+        its chain first, ``e^{-ξ q}``)."""
+        k = len(self.table.joints)
+        mount = [(joint.apply_motion, 1 + k + i) for i, joint in enumerate(self.mount.twists)]
+        table = [(joint.apply_inverse_motion, 1 + i) for i, joint in enumerate(self.table.joints)]
+        return tuple(reversed(table + mount))
 
     def _fk6(self, q6: np.ndarray) -> np.ndarray:
         return self.closed_form.pose(q6) if q6.ndim == 1 else self.closed_form.poses(q6)
 
     def dh_frames(self, q) -> np.ndarray:
         """Poses of DH frames 1..6 in the table frame: (6, 4, 4) for q (nq,), (N, 6, 4, 4) for (N, nq)."""
-        if self.table.joints:
+        if self.nq > 6:
             return self._with_table_joints(q, lambda q6: kinematics.dh_frames(self.dh_table, q6))
         return kinematics.dh_frames(self.dh_table, q)
 

@@ -153,14 +153,16 @@ def inverse_chain(joints: tuple[TableJoint, ...], values) -> np.ndarray:
     return out
 
 
-def xacro_spec(joints: tuple[TableJoint, ...]) -> str:
+def xacro_spec(joints: tuple[TableJoint, ...], forward: bool = False) -> str:
     """The joints as the ``table_joints`` xacro argument: ``name:type:axis:point:lower:upper`` separated by
-    spaces (axis of the URDF joint = −axis, since the chain runs from the top to the floor)."""
+    spaces (axis of the URDF joint = −axis, since the chain runs from the top to the floor; +axis with
+    ``forward``, for the mount joints of :mod:`carmkin.model.mount_joints`, which run from the floor up)."""
     def vec(v) -> str:
         return ",".join(repr(float(x)) for x in v)
 
+    sign = 1.0 if forward else -1.0
     return " ".join(
-        f"{j.name}:{'prismatic' if j.prismatic else 'revolute'}:{vec(-np.asarray(j.axis))}:{vec(j.point)}:"
+        f"{j.name}:{'prismatic' if j.prismatic else 'revolute'}:{vec(sign * np.asarray(j.axis))}:{vec(j.point)}:"
         f"{j.range.lower!r}:{j.range.upper!r}"
         for j in joints
     )

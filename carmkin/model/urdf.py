@@ -13,6 +13,7 @@ from importlib import resources
 import numpy as np
 import pinocchio as pin
 
+from carmkin.model import mount_joints
 from carmkin.model.table_joints import xacro_spec
 
 #: Number of boxes approximating the C's arc.
@@ -67,6 +68,12 @@ def xacro_arguments(system) -> dict[str, str]:
         ceiling_height=_fmt(body.ceiling_height),
         c_segments=str(C_SEGMENTS),
     )
+    if system.mount.joints:  # the floor stays with the table reference while the mount moves the C-arm base
+        K = system.carm_base_pose
+        floor = K[:3, 3] + body.floor_height * K[:3, 2]
+        joints, boxes = mount_joints.xacro_spec(system.mount, K[:3, 3])
+        args.update(mount_joints=joints, mount_boxes=boxes, mount_width=_fmt(system.mount.link_width),
+                     floor_xyz=_fmt(*floor), floor_rpy=_fmt(*mount_joints.rpy(K[:3, :3])))
     return args
 
 

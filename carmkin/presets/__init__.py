@@ -22,6 +22,7 @@ from carmkin.errors import InvalidParameterError, PresetError, UnknownPresetErro
 from carmkin.model import kinematics
 from carmkin.model.calibration import Calibration
 from carmkin.model.motion import JointMotion, Motion
+from carmkin.model.mount_joints import AXIS_TOLERANCE
 from carmkin.model.params import (
     BodyGeometry,
     CArmGeometry,
@@ -29,8 +30,10 @@ from carmkin.model.params import (
     TableGeometry,
     TableSetup,
 )
+from carmkin.model.mount_joints import MountGeometry, MountJoint
 from carmkin.model.system import CArmSystem
 from carmkin.model.table_joints import CHAIN_ORDER, KINDS, standard_joints
+from carmkin.transforms import inverse
 
 from . import biplane as _biplane
 from .schema import SETUP_FORMS as _SETUP_FORMS
@@ -291,7 +294,8 @@ def _resolve_base(data: dict, origin: dict[str, str], label: str, depth: int = 0
         raise PresetError(f"{label}: 'base' chain longer than {MAX_BASE_DEPTH} (a cycle?)")
     base_label = _builtin_file(data["base"], "base preset")
     base, base_origin = _resolve_base(*_parse(Path(base_label).read_text(), base_label), base_label, depth + 1)
-    dropped = ("name", "description", "setup") if "setup" in data else ("name", "description")
+    replaces_setup = "setup" in data or any(key in data.get("mount", {}) for key in MOUNT_CARM_BASE)
+    dropped = ("name", "description", "setup") if replaces_setup else ("name", "description")
     base = {k: v for k, v in base.items() if k not in dropped}
     base_origin = {k: v for k, v in base_origin.items() if k.partition(".")[0] in base}
     merged = _merge(base, {k: v for k, v in data.items() if k != "base"})
@@ -370,10 +374,72 @@ def _table_joints(section: dict) -> tuple:
                            _mm3(_get(section, "pivot_mm", "table.joints"), "pivot_mm"))
 
 
+#: Keys of ``[mount]`` that place the C-arm base on the robot at rest; given, they replace ``[setup]``.
+MOUNT_CARM_BASE = ("carm_base_origin_mm", "carm_base_x_axis", "carm_base_z_axis")
+
+
+def _mount(section: dict, carm_base=None) -> MountGeometry:
+    """The mount of ``[mount]`` and its ``[mount.joints.<name>]`` sub-tables (floor up, in file order)."""
+    if not section:
+        return MountGeometry()
+    joints = []
+    for name, keys in section.get("joints", {}).items():
+        where = f"mount.joints.{name}"
+        kinds = [unit for unit in ("mm", "deg") if f"min_{unit}" in keys or f"max_{unit}" in keys]
+        if len(kinds) != 1:
+            raise PresetError(f"[{where}] needs min_deg and max_deg (a revolute joint) or min_mm and max_mm (a "
+                              f"prismatic one), got {sorted(keys)}")
+        unit = kinds[0]
+        axis = _get(keys, "axis", where)
+        if abs(math.fsum(v * v for v in axis) - 1.0) > 2 * AXIS_TOLERANCE:
+            raise PresetError(f"[{where}] axis must be a unit vector, got {axis} (length "
+                              f"{math.sqrt(math.fsum(v * v for v in axis)):.12g})")
+        scale = _MM if unit == "mm" else math.pi / 180
+        joint_range = JointRange(_get(keys, f"min_{unit}", where) * scale, _get(keys, f"max_{unit}", where) * scale, name)
+        joints.append(MountJoint(name, unit == "mm", tuple(axis), _mm3(_get(keys, "point_mm", where), "point_mm"),
+                                 joint_range))
+    if not joints:
+        raise PresetError("[mount] needs its joints: one [mount.joints.<name>] table per joint, floor up")
+    return MountGeometry(
+        tuple(joints),
+        base_origin=_mm3(section.get("base_origin_in_table_mm", [0.0, 0.0, 0.0]), "base_origin_in_table_mm"),
+        base_x_axis=tuple(section.get("base_x_axis_in_table", (1.0, 0.0, 0.0))),
+        base_z_axis=tuple(section.get("base_z_axis_in_table", (0.0, 0.0, 1.0))),
+        link_width=section.get("link_width_mm", MountGeometry.link_width / _MM) * _MM, carm_base=carm_base)
+
+
+def _mount_setup(section: dict, mount: MountGeometry) -> tuple[TableSetup, tuple]:
+    """The setup of a mounted C-arm from its base at rest in the robot base frame (``[mount] carm_base_*``):
+    eq. 4.3's common normals of the table frame seen from that base, ``inverse(T_0B · T_BC)``; and that base
+    as :attr:`MountGeometry.carm_base <carmkin.model.mount_joints.MountGeometry.carm_base>`."""
+    missing = [key for key in MOUNT_CARM_BASE if key not in section]
+    if missing:
+        raise PresetError(f"[mount] gives the C-arm base at rest with {', '.join(MOUNT_CARM_BASE)}; missing "
+                          f"{', '.join(missing)}")
+    x, z = (np.asarray(section[key], dtype=float) for key in MOUNT_CARM_BASE[1:])
+    if abs(np.linalg.norm(x) - 1) > AXIS_TOLERANCE or abs(np.linalg.norm(z) - 1) > AXIS_TOLERANCE or abs(x @ z) > AXIS_TOLERANCE:
+        raise PresetError(f"[mount] carm_base_x_axis and carm_base_z_axis must be orthonormal, got {x.tolist()} and "
+                          f"{z.tolist()}")
+    T_BC = np.eye(4)
+    T_BC[:3, :3] = np.column_stack((x, np.cross(z, x), z))
+    T_BC[:3, 3] = np.asarray(section["carm_base_origin_mm"], dtype=float) * _MM
+    carm_base = (tuple(T_BC[:3, 3]), tuple(x), tuple(z))
+    return TableSetup.from_pose(inverse(mount.base_pose @ T_BC)), carm_base
+
+
 def _system(data: dict, default_name: str) -> CArmSystem:
     """The system of a checked, merged preset."""
     carm = _carm(_get(data, "carm", "top level"))
-    setup = _setup(_get(data, "setup", "top level"), carm)
+    mount_section = data.get("mount", {})
+    mount = _mount(mount_section)
+    if any(key in mount_section for key in MOUNT_CARM_BASE):
+        if "setup" in data:
+            raise PresetError(f"[mount] {', '.join(MOUNT_CARM_BASE)} place the C-arm base and replace [setup]; "
+                              "give one of the two")
+        setup, carm_base = _mount_setup(mount_section, mount)
+        mount = _mount(mount_section, carm_base)
+    else:
+        setup = _setup(_get(data, "setup", "top level"), carm)
     t = data.get("table", {})
     table_defaults = TableGeometry()
     table = TableGeometry(
@@ -386,7 +452,8 @@ def _system(data: dict, default_name: str) -> CArmSystem:
     body = BodyGeometry(**{key.removesuffix("_mm"): value if isinstance(value, str) else
                            _mm3(value, key) if isinstance(value, list) else value * _MM
                            for key, value in data.get("body", {}).items()})
-    system = CArmSystem(carm=carm, setup=setup, table=table, body=body, name=data.get("name", default_name))
+    system = CArmSystem(carm=carm, setup=setup, table=table, body=body, name=data.get("name", default_name),
+                        mount=mount)
     if "calibration" in data:
         system = system.replace(calibration=_calibration(data["calibration"], system))
     return system.replace(motion=_motion(data["motion"], system)) if "motion" in data else system

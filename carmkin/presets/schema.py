@@ -8,6 +8,7 @@ The bounds are those of :mod:`carmkin.model.bounds`, converted to mm and degrees
 from __future__ import annotations
 
 import difflib
+import re
 import math
 from dataclasses import dataclass
 
@@ -111,6 +112,22 @@ SECTIONS: dict[str, dict[str, Rule]] = {
         "pivot_mm": _length(size=3),
         **_limits({name: KINDS[name][0] for name in CHAIN_ORDER}),
     },
+    "mount": {  # a robot (or any chain) carrying the C-arm base: carmkin.model.mount_joints
+        "base_origin_in_table_mm": _length(size=3),
+        "base_x_axis_in_table": _DIRECTION,
+        "base_z_axis_in_table": _DIRECTION,
+        "carm_base_origin_mm": _length(size=3),
+        "carm_base_x_axis": _DIRECTION,
+        "carm_base_z_axis": _DIRECTION,
+        "link_width_mm": _length(positive=True),
+    },
+    "mount.joints": {},
+    "mount.joints.*": {  # one sub-table per joint, named by the joint, in the order from the floor up
+        "axis": _DIRECTION,
+        "point_mm": _length(size=3),
+        "min_mm": _PRISMATIC_LIMIT, "max_mm": _PRISMATIC_LIMIT,  # a prismatic joint
+        "min_deg": _REVOLUTE_LIMIT, "max_deg": _REVOLUTE_LIMIT,  # a revolute joint
+    },
     # a calibrated device (carmkin.model.calibration.Calibration): reading + zero offset = model joint value
     "calibration": {
         **{f"{name}_zero_offset_{'mm' if prismatic else 'deg'}": _PRISMATIC_LIMIT if prismatic else _REVOLUTE_LIMIT
@@ -157,12 +174,19 @@ def _check_section(data: dict, section: str, file: str, sections: dict[str, dict
     subsections = {s.rpartition(".")[2] for s in sections if s and s.rpartition(".")[0] == section}
     where = f"[{section}]" if section else "the top level"
     for key, value in data.items():
-        if key in subsections:
+        if "*" in subsections:  # sub-tables named by the user (the mount's joints), each checked by the "*" rules
+            if not isinstance(value, dict):
+                raise PresetError(f"{file}: {key!r} in [{section}] must be a table (a [{_join(section, key)}] section), "
+                                  f"got {value!r}")
+            _check_named(value, _join(section, "*"), _join(section, key), file)
+        elif key in subsections:
             if not isinstance(value, dict):
                 raise PresetError(f"{file}: [{_join(section, key)}] must be a table (a [section]), got {value!r}")
             _check_section(value, _join(section, key), file, sections)
         elif key in rules:
             check_value(rules[key], value, f"{file}: [{section}] {key}" if section else f"{file}: {key}")
+        elif (rule := _named_joint_rule(section, key)) is not None:  # a mount's joint: the loader checks the name
+            check_value(rule, value, f"{file}: [{section}] {key}")
         else:
             kind = "section" if isinstance(value, dict) else "key"
             raise PresetError(f"{file}: unknown {kind} {key!r} in {where}{_nearest(key, set(rules) | subsections)}")
@@ -189,6 +213,33 @@ BIPLANE_SECTIONS: dict[str, dict[str, Rule]] = {
 def check_biplane_file(data: dict, file: str) -> None:
     """:func:`check_file` for a biplane preset (:data:`BIPLANE_SECTIONS`)."""
     _check_section(data, "", file, BIPLANE_SECTIONS)
+
+
+#: Keys of ``[motion]`` and ``[calibration]`` for a joint the schema cannot list: a mount's joints are named by
+#: the preset (``[mount.joints.<name>]``); the loader refuses a name that is no joint of the system.
+_NAMED_JOINT_KEYS = {
+    "motion": re.compile(r"(?P<joint>[A-Za-z]\w*?)_(?P<rest>(speed|acceleration)_(mm|deg)_s2?)"),
+    "calibration": re.compile(r"(?P<joint>[A-Za-z]\w*?)_(?P<rest>zero_offset_(mm|deg))"),
+}
+
+
+def _named_joint_rule(section: str, key: str) -> Rule | None:
+    """The rule of ``key`` in ``[motion]`` or ``[calibration]`` for a joint named by the preset (that of the same
+    key of a standard joint with the same unit), or None."""
+    match = _NAMED_JOINT_KEYS[section].fullmatch(key) if section in _NAMED_JOINT_KEYS else None
+    if match is None:
+        return None
+    return next((rule for name, rule in SECTIONS[section].items() if name.endswith("_" + match["rest"])), None)
+
+
+def _check_named(data: dict, section: str, name: str, file: str) -> None:
+    """A user-named sub-table ``[name]`` against the rules of ``section`` (``"….*"``)."""
+    rules = SECTIONS[section]
+    for key, value in data.items():
+        if key not in rules:
+            kind = "section" if isinstance(value, dict) else "key"
+            raise PresetError(f"{file}: unknown {kind} {key!r} in [{name}]{_nearest(key, rules)}")
+        check_value(rules[key], value, f"{file}: [{name}] {key}")
 
 
 def check_value(rule: Rule, value, what: str) -> None:
@@ -220,12 +271,13 @@ def check_merged(data: dict, origin: dict[str, str], file: str) -> None:
 
     ``origin`` maps dotted keys to the file each value came from (default: ``file``).
     """
-    for section, rules in SECTIONS.items():
+    named = [(f"mount.joints.{joint}", SECTIONS["mount.joints.*"]) for joint in _section(data, "mount.joints")]
+    for section, rules in [*SECTIONS.items(), *named]:
         values = _section(data, section)
         for key in rules:
-            if "_min_" not in key or key not in values:
+            if "_min_" not in f"_{key}" or key not in values:  # <joint>_min_<unit>, or min_<unit> of a named joint
                 continue
-            upper = key.replace("_min_", "_max_")
+            upper = f"_{key}".replace("_min_", "_max_")[1:]
             unit = key.rpartition("_")[2]
             if upper in values and values[key] > values[upper]:
                 raise PresetError(f"{origin.get(_join(section, key), file)}: [{section}] {key} = {values[key]:g} {unit} "

@@ -49,6 +49,10 @@ def to_toml(system: CArmSystem) -> str:
             value if isinstance(value, str) else [v / MM for v in value] if isinstance(value, tuple) else value / MM
             for f in fields(BodyGeometry) for value in (getattr(system.body, f.name),)}
     document = {"name": system.name, "carm": carm_keys, "setup": setup_keys, "table": table_keys, "body": body}
+    if system.mount.joints:
+        document["mount"] = _mount(system)
+        if "carm_base_origin_mm" in document["mount"]:
+            del document["setup"]  # derived from the mount's C-arm base at rest, as the preset stated it
     if not system.calibration.is_nominal:
         document["calibration"] = _calibration(system)
     if system.motion is not None:
@@ -73,6 +77,27 @@ def _limits(joint_range: JointRange, prismatic: bool, name: str | None = None) -
 
 def _mm(metres: float) -> float:
     return metres / MM
+
+
+def _mount(system: CArmSystem) -> dict:
+    """``[mount]`` and its ``[mount.joints.<name>]`` (twists in the robot base frame, as a preset states them);
+    the C-arm base at rest (``carm_base_*``) when the system's setup is the one it gives."""
+    from carmkin.presets import MOUNT_CARM_BASE, _mount_setup  # (the loader's own derivation, not a second one)
+
+    mount = system.mount
+    keys = {"base_origin_in_table_mm": [v / MM for v in mount.base_origin],
+            "base_x_axis_in_table": list(mount.base_x_axis), "base_z_axis_in_table": list(mount.base_z_axis),
+            "link_width_mm": mount.link_width / MM}
+    if mount.carm_base is not None:
+        origin, x, z = mount.carm_base
+        stated = dict(zip(MOUNT_CARM_BASE, ([v / MM for v in origin], list(x), list(z))))
+        if _mount_setup(stated, mount)[0] == system.setup:
+            keys.update(stated)
+    keys["joints"] = {joint.name: {"axis": list(joint.axis), "point_mm": [v / MM for v in joint.point],
+                                   **{key.partition("_")[2]: value for key, value in
+                                      _limits(joint.range, joint.prismatic, "joint").items()}}
+                      for joint in mount.joints}
+    return keys
 
 
 def _calibration(system: CArmSystem) -> dict[str, float]:

@@ -229,6 +229,8 @@ class PreparedIK:
 
         if 0 in locked or any(k >= system.nq - 5 for k in locked):
             return None
+        if system.mount.joints:  # it would hold the robot and move the C-arm's own (often locked) joints: QP only
+            return None
         try:
             result = solve_single_axis(system, pose, "table_translation", q_ref)
         except CarmkinError as exc:

@@ -204,12 +204,13 @@ def locked_theta2(system, targets, directions, frame) -> np.ndarray | None:
 
 
 def base_frame(system, q_hold) -> np.ndarray:
-    """``E·K`` (4, 4): the C-arm base frame at d0 = 0 in the table frame with the table joints of ``q_hold``
-    (nq,) held (``K`` alone without a motorized table)."""
-    if not system.table.joints:
+    """``E·G·K`` (4, 4): the C-arm base frame at d0 = 0 in the table frame with the table and mount joints of
+    ``q_hold`` (nq,) held (``K`` alone without a motorized table or a mount)."""
+    if system.nq == 6:
         return system.carm_base_pose
-    _, q_table = system.split(q_hold)
-    return system.table_motion(q_table) @ system.carm_base_pose
+    q = np.array(q_hold, dtype=float)
+    q[0] = 0.0
+    return system.base_motion(q) @ system.carm_base_pose
 
 
 def joints(system, fam: Families, index, lam, q_hold) -> np.ndarray:

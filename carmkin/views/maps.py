@@ -17,7 +17,7 @@ import numpy as np
 from carmkin.errors import ViewError
 from carmkin.validation import integer, real_array, real_scalar
 
-from . import search
+from . import refine, search
 from .plan import DEFAULT_MARGIN, _table_samples, beam_directions, reference, world_for
 from .view import _patient_frame, _point
 
@@ -82,10 +82,56 @@ def reach_map(system, target, primary_deg=np.arange(-90, 91), secondary_deg=np.a
     n = len(directions)
     ranges = np.tile([0.0, system.carm.source_to_detector], (n, 1))
     out = search.solve_cells(ctx, np.tile(target, (n, 1)), directions, ranges, workers=_workers(workers))
+    if system.mount.joints:  # the closed form holds a mount's joints (a robot's): the QP frees them, cell by cell
+        out = _with_qp(ctx, target, directions, ranges, out, _workers(workers))
     shape = (len(p), len(s))
     return ReachMap(p, s, target, directions.reshape(shape + (3,)), out.reachable.reshape(shape),
                     out.q.reshape(shape + (system.nq,)), out.clearance.reshape(shape), out.distance.reshape(shape),
                     out.binding.reshape(shape), out.reason.reshape(shape), out.rank.reshape(shape))
+
+
+#: ``rank`` of a cell that only the QP with every joint free reached (:func:`carmkin.views.refine.refine`): after
+#: every place of the closed-form search order (:data:`carmkin.views.search.MAX_EXACT_CHECKS` is its last).
+QP_RANK = search.MAX_EXACT_CHECKS + 1
+
+#: What the forked workers of :func:`_with_qp` solve: set before the fork, read by :func:`_refine_block`.
+_FORKED = None
+
+
+def _refine_block(cells):
+    ctx, target, directions, ranges = _FORKED
+    return [refine.refine(ctx, target, directions[k], ranges[k]) for k in cells]
+
+
+def _with_qp(ctx, target, directions, ranges, out, workers: int):
+    """``out`` with the cells it left unreachable tried by the QP with every joint free (a mount's too): a cell
+    it reaches gets the QP's q, exact clearance and distance, rank :data:`QP_RANK`; the others keep their
+    reason. Over ``workers`` forked processes for many cells (cells are independent: the same answers)."""
+    import dataclasses
+    import multiprocessing
+
+    global _FORKED
+    cells = np.flatnonzero(~out.reachable)
+    if not len(cells):
+        return out
+    blocks = [cells[a:a + 8] for a in range(0, len(cells), 8)]
+    _FORKED = (ctx, target, directions, ranges)
+    try:
+        if workers > 1 and len(blocks) > 1 and "fork" in multiprocessing.get_all_start_methods():
+            with multiprocessing.get_context("fork").Pool(min(workers, len(blocks))) as pool:
+                found = [f for part in pool.map(_refine_block, blocks, chunksize=1) for f in part]
+        else:
+            found = [f for block in blocks for f in _refine_block(block)]
+    finally:
+        _FORKED = None
+    fields = {f.name: getattr(out, f.name).copy() for f in dataclasses.fields(out)}
+    for k, answer in zip(cells.tolist(), found):
+        if answer is not None:
+            q, clearance, distance = answer
+            fields["reachable"][k], fields["q"][k] = True, q
+            fields["clearance"][k], fields["distance"][k] = clearance, distance
+            fields["reason"][k], fields["binding"][k], fields["rank"][k] = None, "", QP_RANK
+    return type(out)(**fields)
 
 
 def default_workers() -> int:

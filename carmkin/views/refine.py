@@ -26,8 +26,8 @@ _PREPARED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def frees_joints(system) -> bool:
-    """Whether the QP frees joints that the closed-form search holds (a motorized table's)."""
-    return bool(system.table.joints)
+    """Whether the QP frees joints that the closed-form search holds (a motorized table's, a mount's)."""
+    return system.nq > 6
 
 
 def _solver(world, margin: float):

@@ -35,12 +35,33 @@ from .tolerances import BOUND_SLACK
 POINT_DISTANCE_SHAPES = ("Box", "Capsule", "Sphere")
 
 
+def link_frames(system) -> tuple[str, ...]:
+    """Names of the frames of :func:`link_poses`, in its order: DH frames 1..6, then with a mount the
+    floor-fixed ``table_reference`` and the mount bodies' ``<joint>_frame`` (:mod:`carmkin.model.mount_joints`)."""
+    names = tuple(f"dh_frame_{k + 1}" for k in range(6))
+    if system.mount.joints:
+        names += ("table_reference",) + tuple(f"{joint.name}_frame" for joint in system.mount.joints)
+    return names
+
+
 def link_poses(system, Q) -> tuple[np.ndarray, np.ndarray]:
-    """DH frames 1..6 (M, 6, 4, 4) and source poses (M, 4, 4) of configurations Q (M, nq): the closed form,
-    with a motorized table's motion ``Tz(d0) E(q_table)`` computed once per distinct table configuration."""
+    """The frames of :func:`link_frames` (M, F, 4, 4) and source poses (M, 4, 4) of configurations Q (M, nq): the
+    closed form, with a motorized table's motion ``Tz(d0) E(q_table)`` computed once per distinct table
+    configuration (and a mount's ``G(q_mount)`` per configuration)."""
+    from carmkin.model import kinematics
+
+    if system.mount.joints:
+        Q = kinematics.check_configuration(Q, system.nq)
+        q6 = system.split(Q)[0].copy()
+        q6[:, 0] = 0.0
+        motion = system.base_motion(Q)
+        rest = Q.copy()
+        rest[:, 1 + len(system.table.joints):-5] = 0.0
+        frames = np.concatenate((motion[:, None] @ kinematics.dh_frames(system.dh_table, q6),
+                                 system.base_motion(rest)[:, None], system.mount_frames(Q)), axis=1)
+        return frames, motion @ system.closed_form.poses(q6)
     if not system.table.joints:
         return system.dh_frames(Q), system.fk(Q, check_units=False)
-    from carmkin.model import kinematics
 
     q6, q_table = system.split(Q)
     distinct, which = np.unique(q_table, axis=0, return_inverse=True)
@@ -78,13 +99,13 @@ class PairBounds:
         self.first = np.array([p.first for p in pairs], dtype=int)
         self.second = np.array([p.second for p in pairs], dtype=int)
         self.pair_radius = self.radii[self.first] + self.radii[self.second]
-        # Every moving shape rides on a joint that carries one of the DH frames: its centre in that frame.
+        # Every moving shape rides on a joint that carries one of the frames of link_poses: its centre in that frame.
         data0 = model.createData()
         pin.framesForwardKinematics(model, data0, pin.neutral(model))
         dh = {}
-        for k in range(6):
-            f = model.getFrameId(f"dh_frame_{k + 1}")
-            dh[model.frames[f].parentJoint] = (k, data0.oMf[f])
+        for k, name in enumerate(link_frames(world.system)):
+            f = model.getFrameId(name)
+            dh.setdefault(model.frames[f].parentJoint, (k, data0.oMf[f]))
         self._moving = np.flatnonzero(self.parent != 0)
         self._frame_of_moving = np.array([dh[j][0] for j in self.parent[self._moving].tolist()], dtype=int)
         self._moving_local = np.array([dh[j][1].actInv(data0.oMi[j].act(self.centres[g])) for g, j in

@@ -7,12 +7,15 @@ patient volume) fixed to the table frame 0, and keeps only the pairs that matter
 * every **moving C-arm part** — the links carried by the vertical joint and beyond: ``dh_frame_2``
   (column), ``dh_frame_3`` (arm sleeve), ``dh_frame_4`` (inner arm), ``dh_frame_5`` (orbital guide),
   ``dh_frame_6`` (C segments), ``xray_source`` (tube housing), ``detector`` (detector and bracket) —
+  and with a mount (a robot holding the C, :mod:`carmkin.model.mount_joints`) its moving bodies
+  ``mount_body_1`` … ``mount_body_n`` —
 * against every **environment body**: ``table`` (table top), each obstacle, and ``floor``.
 
 Excluded on purpose: pairs inside the C-arm (the telescoping sleeve/inner arm, the column in the cart and
 neighbouring links overlap by construction), the table against the cart and the floor (they only slide
 past each other along Z0; the table translation range is the user's statement that this is allowed), and
-the column against the floor (the column stands in the cart, on the floor).
+the column against the floor (the column stands in the cart, on the floor), and a mount's fixed pedestal
+``mount_body_0`` (it stands on the floor; the robot's own bodies and the C-arm are one device, as above).
 
 Distances are signed (negative = penetration depth), in metres, witness points and normals in the table
 frame 0 (the root, ``universe``). The normal points from the first object of a pair to the second.
@@ -131,10 +134,16 @@ def link_of(geometry_name: str) -> str:
 
 def carm_pair_names(geometry_names: Sequence[str], obstacle_names: Sequence[str] = ()) -> list[tuple[str, str]]:
     """The documented pair list of the C-arm model: every moving part against table, obstacles and floor."""
-    moving = [g for g in geometry_names if link_of(g) in CARM_MOVING_LINKS]
+    moving = [g for g in geometry_names if link_of(g) in CARM_MOVING_LINKS or _moving_mount_body(link_of(g))]
     environment = [g for g in geometry_names if link_of(g) in CARM_ENVIRONMENT_LINKS] + list(obstacle_names)
     excluded = set(CARM_EXCLUDED_PAIRS)
     return [(m, e) for m in moving for e in environment if (link_of(m), link_of(e)) not in excluded]
+
+
+def _moving_mount_body(link: str) -> bool:
+    """Whether ``link`` is a moving body of a mount (``mount_body_k``, k ≥ 1; k = 0 is the fixed pedestal)."""
+    stem, _, k = link.rpartition("_")
+    return stem == "mount_body" and k.isdigit() and k != "0"
 
 
 def as_obstacles(patient, error: type[CarmkinError] = PatientModelError) -> tuple:
