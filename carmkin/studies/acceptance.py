@@ -128,7 +128,14 @@ def cbct_sweep(system: CArmSystem, patient=None, views: int = 100):
     certified over the whole arc."""
     patient = patient_on(system) if patient is None else patient
     joint = cbct_joint(system)
-    return plan_sweep(system, np.zeros(3), ARC_DEG[joint], views, patient=patient, joint=joint)
+    q_start = None
+    if system.mount.joints:  # a robot holds the C: start at the AP view's plan, the sweep joint at its lower limit
+        from carmkin.views import View, plan_view
+
+        index = system.joint_names.index(joint)
+        q_start = plan_view(system, View.from_angles(0.0, 0.0, np.zeros(3)), patient).q.copy()
+        q_start[index] = system.lower[index]
+    return plan_sweep(system, np.zeros(3), ARC_DEG[joint], views, patient=patient, q_start=q_start, joint=joint)
 
 
 def in_range_configurations(system: CArmSystem, n: int, seed: int = 0, clearance: float = ROUND_TRIP_CLEARANCE):

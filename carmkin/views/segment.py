@@ -39,6 +39,10 @@ def plan_perpendicular(system, a, b, patient=None, q_current=None, *, prefer=Non
     directions = np.array([v.direction for v in family])
     ranges = np.vstack([distance_range(system, v) for v in family])
     out = search.solve_cells(ctx, targets, directions, ranges)
+    if system.mount.joints:  # the closed form holds a mount's joints (a robot's): the QP frees them, as reach_map
+        from .maps import _with_qp, _workers
+
+        out = _with_qp(ctx, targets[0], directions, ranges, out, _workers(None))
     if preferred is not None:
         order = np.argsort(-(directions @ preferred), kind="stable")  # nearest the preferred beam first
     else:
@@ -46,7 +50,7 @@ def plan_perpendicular(system, a, b, patient=None, q_current=None, *, prefer=Non
     reachable = order[out.reachable[order]]
     chosen = family[int(reachable[0] if len(reachable) else order[0])]
     plan = plan_view(system, chosen, patient, q_current, margin=margin, nearest=False, table_samples=table_samples,
-                     qp=False)
+                     qp=bool(system.mount.joints))
     if not len(reachable):
         from dataclasses import replace
 

@@ -19,12 +19,16 @@ import carmkin
 from carmkin.cli import main
 from carmkin.interop import dicom
 from carmkin.studies import acceptance
+from carmkin.views.maps import QP_RANK
 from carmkin.world import World
 
 PRESETS = carmkin.list_presets()
 ANGIOGRAPHY = [name for name in PRESETS if acceptance.family(carmkin.load_preset(name)) == "angiography"]
 #: A planned beam passes through its target and along its direction to this (m, rad): closed-form round-off.
 BEAM_TOLERANCE = 1e-9
+#: The same for a plan the QP solved (a robot-held C-arm's: the closed form holds the mount's joints): twice the
+#: QP's stopping tolerances (m and rad), which bound its task errors, not this distance (measured: 1.03e-6 m).
+QP_BEAM_TOLERANCE = 2 * max(carmkin.qp_ik.QPIKOptions().position_tolerance, carmkin.qp_ik.QPIKOptions().angle_tolerance)
 #: A frame's exact clearance may fall below the sweep's certified bound by at most coal's accuracy (m).
 CLEARANCE_ACCURACY = 1e-6
 #: The bead drawn in a DRR vs its projection by P (px): issue 15's fiducial acceptance, at ~128 px binned images.
@@ -67,7 +71,8 @@ def test_standard_views_are_planned_and_clear_or_explained(preset):
             assert plan.reason, name
             continue
         distance, angle = _beam_errors(system, plan.q, plan.view.target, plan.view.axis)
-        assert distance <= BEAM_TOLERANCE and angle <= BEAM_TOLERANCE, name
+        tolerance = QP_BEAM_TOLERANCE if plan.solver == "qp" else BEAM_TOLERANCE
+        assert distance <= tolerance and angle <= tolerance, name
         assert np.all(plan.q >= system.lower - 1e-9) and np.all(plan.q <= system.upper + 1e-9), name
         assert world.clearance(plan.q[None])[0] >= carmkin.DEFAULT_MARGIN - CLEARANCE_ACCURACY, name
     assert result.planned >= 14  # today every preset plans all 16
@@ -82,7 +87,8 @@ def test_reach_map_cells_are_what_the_fk_and_the_world_say(preset):
     for i, j in cells:
         q = reach.q[i, j]
         distance, angle = _beam_errors(system, q, reach.target, reach.directions[i, j])
-        assert distance <= BEAM_TOLERANCE and angle <= BEAM_TOLERANCE
+        tolerance = QP_BEAM_TOLERANCE if reach.rank[i, j] == QP_RANK else BEAM_TOLERANCE
+        assert distance <= tolerance and angle <= tolerance
         assert world.clearance(q[None])[0] >= carmkin.DEFAULT_MARGIN - CLEARANCE_ACCURACY
 
 
@@ -149,7 +155,8 @@ def test_viewer_page_draws_every_body(preset):
     paths = {umsgpack.unpackb(base64.b64decode(b))["path"] for b in blobs}
     visuals = {g.name for g in system.pinocchio()[2].geometryObjects}
     links = {system.pinocchio()[0].frames[g.parentFrame].name for g in system.pinocchio()[2].geometryObjects}
-    assert {"table", "carm_cart", "floor", "dh_frame_6", "xray_source", "detector"} <= links
+    cart = set() if system.mount.joints else {"carm_cart"}  # a robot carries the C-arm base: no cart
+    assert {"table", "floor", "dh_frame_6", "xray_source", "detector"} | cart <= links
     assert {f"/meshcat/carmkin/robot/visuals/{name}" for name in visuals} <= paths
 
 
@@ -227,9 +234,10 @@ def test_pose_ik_closed_form_at_rest_and_qp_with_the_table_moved(preset):
         assert result.success, k
         position, angle = pose_error(system.fk(result.q), system.fk(q))
         options = qp_ik.QPIKOptions()  # the QP's own tolerances; the closed form is exact
-        assert position <= (1e-12 if k < 3 else options.position_tolerance), k
-        assert angle <= (1e-12 if k < 3 else options.angle_tolerance), k
-        if k < 3:
+        exact = k < 3 and not system.mount.joints  # a robot-held C-arm has no closed form: the QP solves it
+        assert position <= (1e-12 if exact else options.position_tolerance), k
+        assert angle <= (1e-12 if exact else options.angle_tolerance), k
+        if exact:
             assert result.path != qp_ik.Path.QP, k
 
 
@@ -243,6 +251,7 @@ def test_perpendicular_view_of_a_segment_is_planned(preset):
     plan = plan_perpendicular(system, a, b, patient)
     assert plan.success
     axis = system.fk(plan.q)[:3, 2]
-    assert abs(axis @ (b - a)) / np.linalg.norm(b - a) <= BEAM_TOLERANCE
-    assert _beam_errors(system, plan.q, 0.5 * (a + b), axis)[0] <= BEAM_TOLERANCE
+    tolerance = QP_BEAM_TOLERANCE if plan.solver == "qp" else BEAM_TOLERANCE
+    assert abs(axis @ (b - a)) / np.linalg.norm(b - a) <= tolerance
+    assert _beam_errors(system, plan.q, 0.5 * (a + b), axis)[0] <= tolerance
     assert World(system, patient.obstacles()).clearance(plan.q[None])[0] >= carmkin.DEFAULT_MARGIN - CLEARANCE_ACCURACY
