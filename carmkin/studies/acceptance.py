@@ -64,8 +64,9 @@ def cbct_joint(system: CArmSystem) -> str:
 
 
 def family(system: CArmSystem) -> str:
-    """``"mobile"`` or ``"angiography"`` (see :func:`cbct_joint`)."""
-    return FAMILY[cbct_joint(system)]
+    """``"robot-held"`` for a C-arm a robot carries (mount joints), else ``"mobile"`` or ``"angiography"`` (see
+    :func:`cbct_joint`)."""
+    return "robot-held" if system.mount.joints else FAMILY[cbct_joint(system)]
 
 
 def patient_on(system: CArmSystem) -> ParametricPatient:

@@ -117,6 +117,7 @@ def test_cbct_joint_is_the_rotation_about_the_table_axis():
     assert acceptance.family(carmkin.load_preset("siremobile-iso-c3d")) == "mobile"
     assert acceptance.family(carmkin.load_preset("cios-spin")) == "mobile"
     assert acceptance.family(carmkin.load_preset("angio-floor")) == "angiography"
+    assert acceptance.family(carmkin.load_preset("robotic-carm")) == "robot-held"
     assert acceptance.family(carmkin.load_preset("angio-ceiling")) == "angiography"
 
 
