@@ -3,6 +3,8 @@
 One function per check, each returning data (the benchmark ``benchmarks/presets_acceptance.py`` prints them,
 one row per preset; ``tests/studies/test_presets_acceptance.py`` checks them against independent oracles):
 
+- :func:`zero_view`: the preset's own zero view — AP (primary 0°, secondary 0°) through the table origin, no
+  patient — planned, or a :class:`~carmkin.errors.PresetError` naming why the chain cannot reach it;
 - :func:`fk_agreement`: closed-form FK vs Pinocchio (:func:`carmkin.robot.verify.verify`), worst error (m or rad);
 - :func:`standard_views`: the named standard views (:data:`carmkin.views.standard.STANDARD_VIEWS`) planned through
   the isocentre with a parametric patient on the table, each plan or the reason it is unreachable;
@@ -72,6 +74,20 @@ def family(system: CArmSystem) -> str:
 def patient_on(system: CArmSystem) -> ParametricPatient:
     """The acceptance's patient: 1.75 m, 75 kg, HFS, chest at the isocentre, lying on the table top."""
     return ParametricPatient.on_table(system)
+
+
+def zero_view(system: CArmSystem):
+    """The plan (:class:`carmkin.views.ViewPlan`) of the preset's zero view: AP (primary 0°, secondary 0°) of an
+    HFS patient through the table origin — the isocentre at rest — with the table and no patient. A preset whose
+    chain cannot reach it (joint ranges that exclude it, a body in the way) is a
+    :class:`~carmkin.errors.PresetError` naming the preset and the planner's reason (the joints and ranges)."""
+    from carmkin.errors import PresetError
+
+    plan = plan_view(system, View.from_angles(0.0, 0.0, np.zeros(3)))
+    if not plan.success:
+        raise PresetError(f"preset {system.name!r}: the chain cannot reach its own zero view (AP, primary 0° and "
+                          f"secondary 0°, through the table origin): {plan.reason}")
+    return plan
 
 
 def fk_agreement(system: CArmSystem, samples: int = 10_000, seed: int = 0) -> float:

@@ -256,3 +256,26 @@ def test_perpendicular_view_of_a_segment_is_planned(preset):
     assert abs(axis @ (b - a)) / np.linalg.norm(b - a) <= tolerance
     assert _beam_errors(system, plan.q, 0.5 * (a + b), axis)[0] <= tolerance
     assert World(system, patient.obstacles()).clearance(plan.q[None])[0] >= carmkin.DEFAULT_MARGIN - CLEARANCE_ACCURACY
+
+
+def test_every_preset_reaches_its_own_zero_view(preset):
+    """AP through the table origin, no patient: the beam goes up through the origin (FK, not the planner)."""
+    system, _ = preset
+    plan = acceptance.zero_view(system)
+    distance, angle = _beam_errors(system, plan.q, np.zeros(3), np.array([0.0, -1.0, 0.0]))
+    tolerance = QP_BEAM_TOLERANCE if plan.solver == "qp" else BEAM_TOLERANCE
+    assert distance <= tolerance and angle <= tolerance
+
+
+def test_a_preset_that_cannot_reach_its_zero_view_is_refused(tmp_path, capsys):
+    """Angular and orbital ranges of 30–60° leave no roll that points the beam up: a PresetError naming the
+    preset and the ranges; `carmkin verify` prints it and exits 1."""
+    from carmkin.errors import PresetError
+
+    path = tmp_path / "tilted.toml"
+    path.write_text('base = "siremobile-iso-c3d"\n[carm]\nangular_min_deg = 30.0\nangular_max_deg = 60.0\n'
+                    'orbital_min_deg = 30.0\norbital_max_deg = 60.0\n')
+    with pytest.raises(PresetError, match=r"'tilted'.*zero view.*(angular|orbital)"):
+        acceptance.zero_view(carmkin.load_preset(path))
+    assert main(["verify", "--preset", str(path), "--samples", "20"]) == 1
+    assert "zero view: FAIL" in capsys.readouterr().out
