@@ -277,6 +277,11 @@ class BodyGeometry:
             ceiling and the column rises from the arm to it). Only the bodies change; the chain is the same.
         ceiling_height: ceiling height in the C-arm base frame (m, above the vertical axis origin); used
             when ``mount == "ceiling"``.
+        c_radius: the C-arc's own radius (m), about the orbital axis; ``None`` (the default): the source to
+            orbital axis distance L, the C passing through the source. A larger one (at least L, checked by
+            :class:`~carmkin.model.system.CArmSystem`) runs from L - c_radius to L + c_radius along the
+            principal axis, a bracket joining its near end to the source housing (a biplane's lateral C, the
+            frontal turning inside it). Bodies only: the kinematics does not change.
     """
 
     floor_height: float = -1.0
@@ -288,9 +293,12 @@ class BodyGeometry:
     detector_thickness: float = 0.15
     mount: str = "floor"
     ceiling_height: float = 2.0
+    c_radius: float | None = None
 
     def __post_init__(self) -> None:
         owner = "BodyGeometry"
+        if self.c_radius is not None:
+            object.__setattr__(self, "c_radius", check_length(f"{owner}.c_radius", self.c_radius, positive=True))
         if self.mount not in MOUNTS:
             raise InvalidParameterError(f"{owner}.mount must be one of {', '.join(map(repr, MOUNTS))}, got {self.mount!r}")
         object.__setattr__(self, "floor_height", check_length(f"{owner}.floor_height", self.floor_height))

@@ -73,6 +73,11 @@ class CArmSystem:
         for joint_range, prismatic in zip(self.joint_ranges, self.prismatic):
             check_joint_limits(joint_range, prismatic, "CArmSystem")
         self.calibration.offsets(self.nq)  # one zero offset per joint, or none
+        if self.body.c_radius is not None and self.body.c_radius < self.carm.source_to_orbital_axis:
+            raise InvalidParameterError(
+                f"CArmSystem.body.c_radius = {self.body.c_radius * 1e3:g} mm is shorter than the source to orbital "
+                f"axis distance {self.carm.source_to_orbital_axis * 1e3:g} mm: the C must reach the source; "
+                f"expected at least that, or None")
         if self.motion is not None and (not isinstance(self.motion, Motion) or self.motion.names != self.joint_names):
             raise InvalidParameterError(
                 f"CArmSystem.motion must be a Motion naming the joints {', '.join(self.joint_names)} in this "

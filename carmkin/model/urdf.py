@@ -55,6 +55,7 @@ def xacro_arguments(system) -> dict[str, str]:
         detector_height=_fmt(carm.detector_height),
         arm_length=_fmt(carm.arm_length),
         c_radius=_fmt(carm.source_to_orbital_axis),
+        c_arc=_fmt(carm.source_to_orbital_axis if body.c_radius is None else body.c_radius),
         table_size=_fmt(*table.top_size),
         table_center=_fmt(*table.top_center),
         floor_height=_fmt(body.floor_height),

@@ -147,6 +147,7 @@ SECTIONS: dict[str, dict[str, Rule]] = {
         "detector_thickness_mm": _length(positive=True),
         "mount": _STRING,
         "ceiling_height_mm": _length(),
+        "c_radius_mm": _length(positive=True),
     },
     "motion": _rates(ALL_JOINTS),
 }

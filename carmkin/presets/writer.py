@@ -47,7 +47,7 @@ def to_toml(system: CArmSystem) -> str:
         table_keys["joints"] = _table_joints(table.joints)
     body = {f.name if isinstance(value, str) else f"{f.name}_mm":
             value if isinstance(value, str) else [v / MM for v in value] if isinstance(value, tuple) else value / MM
-            for f in fields(BodyGeometry) for value in (getattr(system.body, f.name),)}
+            for f in fields(BodyGeometry) for value in (getattr(system.body, f.name),) if value is not None}
     document = {"name": system.name, "carm": carm_keys, "setup": setup_keys, "table": table_keys, "body": body}
     if system.mount.joints:
         document["mount"] = _mount(system)
