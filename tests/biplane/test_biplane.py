@@ -165,8 +165,9 @@ def test_distances_between_the_planes_are_symmetric(u):
     q_f, q_l = BIPLANE.planes_q(q)
     forward = Between(WORLD.frontal, WORLD.lateral)
     backward = Between(WORLD.lateral, WORLD.frontal)
-    d_fl = forward.distances(q_f, q_l).reshape(len(forward.pairs) // 16, 16)
-    d_lf = backward.distances(q_l, q_f).reshape(16, -1)
+    n_lateral = len({lateral for _, lateral in forward.pairs})
+    d_fl = forward.distances(q_f, q_l).reshape(-1, n_lateral)
+    d_lf = backward.distances(q_l, q_f).reshape(n_lateral, -1)
     np.testing.assert_allclose(d_fl, d_lf.T, rtol=0, atol=SAME_DISTANCE)
     assert forward.clearance(q_f, q_l)[0] == pytest.approx(backward.clearance(q_l, q_f)[0], abs=SAME_DISTANCE)
 
@@ -198,7 +199,8 @@ def test_every_value_of_the_biplane_preset_has_a_provenance():
     for key, p in provenance.items():
         if key not in ("name", "description"):
             assert p.kind in ("source", "assumption") and p.note, key
-    assert provenance["lateral.setup.table_x_axis_in_xray"].file.endswith("angio-biplane.toml")
+    assert provenance["lateral.setup.table_x_axis_in_xray"].file.endswith("angio-lateral.toml")
+    assert provenance["lateral.body.c_radius_mm"].file.endswith("angio-lateral.toml")
     assert provenance["frontal.carm.orbital_offset_mm"].file.endswith("angio-floor.toml")
 
 
@@ -223,11 +225,22 @@ orbital_deg = -90.0
 """
 
 
-def test_a_users_biplane_file_loads_like_the_builtin(tmp_path):
+def test_a_users_biplane_file_loads(tmp_path):
     biplane = load_biplane(_write(tmp_path, GOOD))
     assert biplane.name == "mine"
     assert biplane.frontal == BIPLANE.frontal.replace(name="angio-floor")
-    assert biplane.rest == BIPLANE.rest
+    assert np.degrees(biplane.rest[-2:]).tolist() == pytest.approx([90.0, -90.0])
+
+
+def test_the_builtin_lateral_plane_turns_its_c_over_the_patient_around_the_frontal_one():
+    """angio-biplane's lateral plane (angio-lateral): its C-arc larger than the frontal's, its arm axis vertical
+    (the C's guide above the isocentre) and its beam across the table at rest (table frame: X0 left, Y0 down)."""
+    lateral = BIPLANE.lateral
+    assert lateral.body.c_radius > BIPLANE.frontal.carm.source_to_orbital_axis + BIPLANE.frontal.body.c_thickness
+    beam = BIPLANE.fk(np.array(BIPLANE.rest))[1][:3, 2]
+    assert abs(beam[0]) == pytest.approx(1.0, abs=1e-12)
+    frames = lateral.dh_frames(BIPLANE.planes_q(np.array(BIPLANE.rest))[1])
+    assert abs(frames[3][1, 2]) == pytest.approx(1.0, abs=1e-12)  # the angular axis (Z of DH frame 3) along Y0
 
 
 def test_a_biplane_whose_planes_intersect_at_rest_is_refused_naming_the_field(tmp_path):

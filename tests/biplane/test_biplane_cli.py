@@ -12,11 +12,11 @@ from carmkin.cli import main
 def test_check_prints_the_rest_clearances(capsys):
     assert main(["biplane", "check"]) == 0
     out = capsys.readouterr().out
-    assert "frontal angio-floor, lateral angio-ceiling, 15 joints" in out and "lateral.orbital=-90.000°" in out
-    assert "between the planes 322.4 mm" in out and "planes 0.000 mm apart" in out
+    assert "frontal angio-floor, lateral angio-lateral, 15 joints" in out and "lateral.orbital=+0.000°" in out
+    assert "between the planes 146.2 mm" in out and "planes 0.000 mm apart" in out
     assert main(["biplane", "check", "--json"]) == 0
     data = json.loads(capsys.readouterr().out)
-    assert data["clearance_mm"]["planes"] == pytest.approx(322.4, abs=0.1) and data["rest"]["lateral.angular_deg"] == 90
+    assert data["clearance_mm"]["planes"] == pytest.approx(146.2, abs=0.1) and data["rest"]["lateral.angular_deg"] == 0
 
 
 def test_plan_prints_both_planes_and_writes_the_page(tmp_path, capsys):
@@ -33,9 +33,9 @@ def test_plan_json_and_an_unplannable_pair(capsys):
                  "--patient", "none", "--json"]) == 0
     data = json.loads(capsys.readouterr().out)
     assert data["success"] and data["angle_deg"] == pytest.approx(90.0) and data["clearance_mm"] > 10
-    assert main(["biplane", "plan", "--standard", "ap", "--json"]) == 1  # the lateral C meets the patient's legs
+    assert main(["biplane", "plan", "--standard", "pa", "--json"]) == 1  # the frontal tube meets the lateral's arm
     data = json.loads(capsys.readouterr().out)
-    assert not data["success"] and data["failure"] == "LATERAL_UNREACHABLE" and "patient" in data["reason"]
+    assert not data["success"] and data["failure"] == "LATERAL_UNREACHABLE" and "frontal.xray_source" in data["reason"]
 
 
 @pytest.mark.parametrize("argv, message", [
