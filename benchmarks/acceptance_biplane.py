@@ -44,6 +44,7 @@ def fk_row(biplane, samples: int = 10_000, seed: int = 30) -> float:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--preset", default="angio-biplane")
+    parser.add_argument("--quick", action="store_true", help="accepted for benchmarks/run_all.py; the run is short")
     args = parser.parse_args(argv)
     biplane = load_biplane(args.preset)
     worst = fk_row(biplane)
