@@ -43,8 +43,6 @@ PRIMARY_DEG = np.arange(-90, 91, 2)
 SECONDARY_DEG = np.arange(-45, 46, 2)
 #: The cone-beam CT arc (deg) of each family, by the joint that turns it (:func:`cbct_joint`).
 ARC_DEG = {"orbital": 190.0, "angular": 200.0}
-#: The family of a preset, by the joint of its CBCT orbit.
-FAMILY = {"orbital": "mobile", "angular": "angiography"}
 #: A joint axis counts as along the table when |cos| of its angle to Z0 is at least this.
 ALONG_TABLE_COS = 1.0 - 1e-9
 #: Configurations of :func:`dicom_round_trip` are drawn until their clearance to the table and floor is at least
@@ -66,9 +64,13 @@ def cbct_joint(system: CArmSystem) -> str:
 
 
 def family(system: CArmSystem) -> str:
-    """``"robot-held"`` for a C-arm a robot carries (mount joints), else ``"mobile"`` or ``"angiography"`` (see
-    :func:`cbct_joint`)."""
-    return "robot-held" if system.mount.joints else FAMILY[cbct_joint(system)]
+    """``"robot-held"`` for a C-arm a robot carries (mount joints); ``"angiography"`` for a stand whose
+    isocentre is fixed to the room (vertical and horizontal travel locked: the table moves instead), whether
+    at the head end (its CBCT orbit the propeller) or a biplane's lateral plane; else ``"mobile"``."""
+    if system.mount.joints:
+        return "robot-held"
+    locked = all(r.upper - r.lower <= 0.0 for r in (system.carm.vertical, system.carm.horizontal))
+    return "angiography" if locked else "mobile"
 
 
 def patient_on(system: CArmSystem) -> ParametricPatient:
