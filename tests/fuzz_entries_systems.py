@@ -149,7 +149,8 @@ def grid_axis(rng):
 
 # --- presets and extras -----------------------------------------------------------------------------
 def presets(rng):
-    name = str(rng.choice(["siremobile-iso-c3d", "siremobile-iso-c3d-motorized-table", "nope", "", "../x.toml"]))
+    name = str(rng.choice(["siremobile-iso-c3d", "siremobile-iso-c3d-motorized-table", "nope", "",
+                           "/nonexistent-carmkin-folder/x.toml"]))  # a path that is no file (not "../x.toml": it may be)
     return maybe_junk(rng, Case(load_preset, (name,), check=lambda s: isinstance(s, carmkin.CArmSystem) and
                                 name.startswith("siremobile")), ("name",))
 
