@@ -31,13 +31,16 @@ planes are clear of each other at rest. This module holds the pieces that need n
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from carmkin.errors import BiplaneError, PresetError
-from carmkin.model.biplane import Biplane, default_rest, table_joint_count
 
 from .schema import check_biplane_file
+
+if TYPE_CHECKING:
+    from carmkin.model.biplane import Biplane
 
 #: The top-level section that makes a preset file a biplane preset.
 SECTION = "biplane"
@@ -67,6 +70,8 @@ def rest_vector(data: dict, frontal, lateral, label: str) -> np.ndarray:
     """The biplane rest configuration (nq,) of ``[rest.*]`` (m, rad); joints not named take
     :func:`~carmkin.model.biplane.default_rest`."""
     rest = data.get("rest", {})
+    from carmkin.model.biplane import default_rest, table_joint_count  # on first use: `import carmkin` stays light
+
     k, k_lateral = table_joint_count(frontal), table_joint_count(lateral)  # (equal tables: checked by Biplane)
     f, lat = default_rest(frontal), default_rest(lateral)
     named = [(rest.get("table", {}), "table", frontal, range(k), (f, lat) if k == k_lateral else (f,)),
@@ -88,11 +93,13 @@ def rest_vector(data: dict, frontal, lateral, label: str) -> np.ndarray:
     return np.concatenate((f, lat[k_lateral:]))
 
 
-def assemble(data: dict, label: str, frontal, lateral) -> Biplane:
+def assemble(data: dict, label: str, frontal, lateral) -> "Biplane":
     """The :class:`~carmkin.model.biplane.Biplane` of a checked file, its planes loaded (the lateral already
     placed); a model error is re-raised naming the file."""
     name = data.get("name", label.rsplit("/", 1)[-1].removesuffix(".toml"))
     try:
+        from carmkin.model.biplane import Biplane
+
         return Biplane(frontal, lateral, tuple(rest_vector(data, frontal, lateral, label).tolist()), name)
     except BiplaneError as exc:
         raise BiplaneError(f"{label}: {exc}") from None
