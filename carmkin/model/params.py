@@ -59,6 +59,12 @@ class JointRange:
         object.__setattr__(self, "lower", lower)
         object.__setattr__(self, "upper", upper)
 
+    @property
+    def locked(self) -> bool:
+        """True for a joint that does not move: a range no wider than :data:`JOINT_RANGE_TOLERANCE` (min = max,
+        e.g. an angiography stand's vertical travel)."""
+        return self.upper - self.lower <= JOINT_RANGE_TOLERANCE
+
     def excess(self, value):
         """Signed distance outside the range: < 0 below ``lower``, > 0 above ``upper``, 0 inside.
 

@@ -360,14 +360,18 @@ def _mm3(values, key: str) -> tuple[float, float, float]:
     return tuple(v * _MM for v in values)
 
 
+def _unit(prismatic: bool) -> tuple[str, float]:
+    """A joint's preset unit and its factor to SI: ``("mm", 1e-3)`` (prismatic) or ``("deg", π/180)``."""
+    return ("mm", _MM) if prismatic else ("deg", math.pi / 180)
+
+
 def _table_joints(section: dict) -> tuple:
     """Extra table joints from ``[table.joints]``: ``<name>_min/max_mm|deg``, ``up_in_table``, ``pivot_mm``."""
     if not section:
         return ()
     ranges = {}
     for name in CHAIN_ORDER:
-        prismatic = KINDS[name][0]
-        unit, scale = ("mm", _MM) if prismatic else ("deg", math.pi / 180)
+        unit, scale = _unit(KINDS[name][0])
         if f"{name}_min_{unit}" in section or f"{name}_max_{unit}" in section:
             ranges[name] = _range(section, name, scale, unit, "table.joints")
     return standard_joints(ranges, _get(section, "up_in_table", "table.joints"),
@@ -461,11 +465,9 @@ def _system(data: dict, default_name: str) -> CArmSystem:
 
 def _calibration(section: dict, system: CArmSystem) -> Calibration:
     """``[calibration]``: ``<joint>_zero_offset_mm|deg`` (absent = 0), ``detector_rotation_deg``, ``sag_*_mm``."""
-    offsets = []
-    for name, prismatic in zip(system.joint_names, system.prismatic):
-        unit, scale = ("mm", _MM) if prismatic else ("deg", math.pi / 180)
-        offsets.append(section.get(f"{name}_zero_offset_{unit}", 0.0) * scale)
-    known = {f"{name}_zero_offset_{'mm' if p else 'deg'}" for name, p in zip(system.joint_names, system.prismatic)}
+    units = {name: _unit(prismatic) for name, prismatic in zip(system.joint_names, system.prismatic)}
+    offsets = [section.get(f"{name}_zero_offset_{unit}", 0.0) * scale for name, (unit, scale) in units.items()]
+    known = {f"{name}_zero_offset_{unit}" for name, (unit, _) in units.items()}
     for key in section:
         if "_zero_offset_" in key and key not in known:
             raise PresetError(f"[calibration] {key}: the system has no such joint (joints: "
@@ -477,8 +479,7 @@ def _calibration(section: dict, system: CArmSystem) -> Calibration:
 def _motion(section: dict, system: CArmSystem) -> Motion:
     """``[motion]``: every joint's ``<joint>_speed_mm_s|deg_s`` (required) and
     ``<joint>_acceleration_mm_s2|deg_s2`` (optional: not known), converted to SI."""
-    units = {name: ("mm", _MM) if prismatic else ("deg", math.pi / 180)
-             for name, prismatic in zip(system.joint_names, system.prismatic)}
+    units = {name: _unit(prismatic) for name, prismatic in zip(system.joint_names, system.prismatic)}
     known = {f"{name}_{kind}_{unit}_s{'2' if kind == 'acceleration' else ''}"
              for name, (unit, _) in units.items() for kind in ("speed", "acceleration")}
     extra = sorted(set(section) - known)

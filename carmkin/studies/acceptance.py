@@ -69,8 +69,7 @@ def family(system: CArmSystem) -> str:
     at the head end (its CBCT orbit the propeller) or a biplane's lateral plane; else ``"mobile"``."""
     if system.mount.joints:
         return "robot-held"
-    locked = all(r.upper - r.lower <= 0.0 for r in (system.carm.vertical, system.carm.horizontal))
-    return "angiography" if locked else "mobile"
+    return "angiography" if system.carm.vertical.locked and system.carm.horizontal.locked else "mobile"
 
 
 def patient_on(system: CArmSystem) -> ParametricPatient:

@@ -172,11 +172,9 @@ def locked_theta2(system, targets, directions, frame) -> np.ndarray | None:
     beam and the table axis are both level in the base frame, or the isocentre's circle meets the line
     everywhere, the values are NaN: the samples cover that one-parameter family."""
     carm = system.carm
-    lower, upper = system.lower, system.upper
-    j1, j2, j3 = system.nq - 5, system.nq - 4, system.nq - 3
-    if not carm.is_isocentric or max(upper[j1] - lower[j1], upper[j3] - lower[j3]) > JOINT_RANGE_TOLERANCE:
+    if not (carm.is_isocentric and carm.vertical.locked and carm.horizontal.locked):
         return None
-    d1, d3 = 0.5 * (lower[j1] + upper[j1]), 0.5 * (lower[j3] + upper[j3])
+    d1, d3 = 0.5 * (carm.vertical.lower + carm.vertical.upper), 0.5 * (carm.horizontal.lower + carm.horizontal.upper)
     B, o = frame[:3, :3], frame[:3, 3]
     t, z, g = (targets - o) @ B, directions @ B, np.broadcast_to(B[2], targets.shape)
     # w(s', d0) = t − s' z − d0 g with w_z = d1: (s', d0) = P + μ v on that line, then |w_xy|² = (M + d3)².
@@ -199,7 +197,8 @@ def locked_theta2(system, targets, directions, frame) -> np.ndarray | None:
     mu = (-b[:, None] + np.stack((root, -root), axis=1)) / (2.0 * a[:, None])  # (N, 2)
     w = w0[:, None, :] + mu[..., None] * wv[:, None, :]
     theta2 = np.arctan2(-w[..., 0], w[..., 1])
-    theta2, excess = _representative(theta2, lower[j2], upper[j2], 0.5 * (lower[j2] + upper[j2]))
+    wigwag = carm.wigwag
+    theta2, excess = _representative(theta2, wigwag.lower, wigwag.upper, 0.5 * (wigwag.lower + wigwag.upper))
     return np.where(ok[:, None] & (excess == 0), theta2, np.nan)
 
 
