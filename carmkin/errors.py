@@ -251,6 +251,12 @@ class MotionError(InvalidParameterError):
     the wrong shape for the joints' speeds."""
 
 
+class MotionPlanError(MotionError):
+    """A motion cannot be planned as asked: an end out of range or in collision (which end, the closest pair),
+    a time budget, margin or planner that is not one, a goal the system cannot hold. A search that finds no
+    path in time is not an error: its :class:`carmkin.motion.Trajectory` says so."""
+
+
 # --- carmkin.sweeps (3D sweeps) ------------------------------------------------------------------
 
 

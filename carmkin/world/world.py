@@ -152,6 +152,14 @@ class World:
         pin.computeDistances(self.geometry_model, self.geometry_data)
         return np.array([r.min_distance for r in self._results])
 
+    def pair_distances(self, q, pairs) -> np.ndarray:
+        """Signed distances (m) of the pairs ``pairs`` (K,) (indices into :attr:`pairs`) at ``q`` (nq,): one
+        forward-kinematics pass, coal on those pairs only (the others' witness points are left as they were)."""
+        pin.forwardKinematics(self.model, self._data, np.asarray(q, dtype=float))
+        self.update(self._data)
+        gm, gd = self.geometry_model, self.geometry_data
+        return np.array([pin.computeDistance(gm, gd, k).min_distance for k in np.asarray(pairs).tolist()], dtype=float)
+
     def grouped(self, q) -> dict[str, float]:
         """The exact smallest signed distance (m) at ``q`` (nq,) to each of :data:`GROUPS` present."""
         d = self.distances(q=q)

@@ -1,0 +1,127 @@
+"""Plan a certified, timed motion between two configurations of any system (``nq`` joints).
+
+:class:`MotionPlanner` holds what depends on the system, the patient and the margin (the world, the
+certifier); :meth:`MotionPlanner.plan` runs one query:
+
+1. the ends: in range (a locked joint at its value) and clear of the margin, else
+   :class:`~carmkin.errors.MotionPlanError` naming the end, the joint or the closest pair;
+2. the straight segment ``q_from → q_to``, certified by :meth:`carmkin.motion.certificate.Certifier.segment`:
+   when clear, it is the motion (the time-optimal straight line);
+3. otherwise OMPL's search (:func:`carmkin.motion.search.search`) within ``time_limit_s``, every state and
+   edge checked by the same certificate, then OMPL's simplifier;
+4. the path's certified minimum clearance (:meth:`~carmkin.motion.certificate.Certifier.minimum`) and its
+   time law (:class:`carmkin.motion.time_law.TimeLaw`, the presets' ``[motion]`` limits).
+
+Lengths in m, angles in rad, times in s.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from carmkin.errors import MotionPlanError
+from carmkin.validation import JOINT_VALUE_LIMIT, real_array, real_scalar
+from carmkin.world import DEFAULT_MARGIN, World
+from carmkin.world.obstacles import link_of
+
+from .certificate import Certifier
+from .search import PLANNERS, search
+from .time_law import TimeLaw
+from .trajectory import Trajectory
+
+#: Default time budget (s) of one search (the straight segment needs none).
+DEFAULT_TIME_LIMIT_S = 2.0
+#: Largest time budget (s) one query may be given: ten minutes (more is a unit slip, e.g. ms as s).
+MAX_TIME_LIMIT_S = 600.0
+
+
+class MotionPlanner:
+    """Plans motions of ``system`` around ``patient`` (as everywhere: None, a patient model or a list of
+    obstacles) keeping ``margin`` (m); ``world``: a :class:`carmkin.world.World` of the system to reuse."""
+
+    def __init__(self, system, patient=None, margin: float = DEFAULT_MARGIN, world: World | None = None) -> None:
+        self.margin = real_scalar(margin, "margin", error=MotionPlanError, low=0.0, high=1.0, unit="m")
+        if world is None:
+            world = World(system, patient)
+        elif world.system is not system:
+            raise MotionPlanError("world belongs to another system: build it as carmkin.world.World(system, patient)")
+        if system.motion is None:
+            raise MotionPlanError(f"system {system.name!r} has no joint speeds ([motion] in its preset): a motion "
+                                  f"cannot be timed")
+        self.system, self.world = system, world
+        self.certifier = Certifier.for_world(world)
+        self.speed = np.array([j.speed for j in system.motion.joints])
+
+    def check_end(self, q, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """``q`` (nq,) as a float array in range and clear of the margin, with its exact distances (P,)."""
+        system = self.system
+        q = real_array(q, name, (system.nq,), error=MotionPlanError, limit=JOINT_VALUE_LIMIT, unit="m, rad")
+        for r, v, prismatic in zip(system.joint_ranges, q.tolist(), system.prismatic):
+            if not r.contains(v):
+                scale, unit = (1e3, "mm") if prismatic else (math.degrees(1.0), "°")
+                raise MotionPlanError(f"{name}: {r.name} = {v * scale:.6g} {unit} is outside its range "
+                                      f"[{r.lower * scale:.6g}, {r.upper * scale:.6g}] {unit}")
+        q = np.clip(q, system.lower, system.upper)  # moves only values within the range tolerance of an end
+        d = self.certifier.distances(q)
+        if len(d) and d.min() < self.margin:
+            k = int(np.argmin(d))
+            a, b = self.world.link_pairs()[k]
+            raise MotionPlanError(f"{name} is not clear of the {self.margin * 1e3:g} mm margin: {a} is "
+                                  f"{d[k] * 1e3:.1f} mm from {b}")
+        return q, d
+
+    def plan(self, q_from, q_to, time_limit_s: float = DEFAULT_TIME_LIMIT_S,
+             planner: str = "rrt-connect") -> Trajectory:
+        """The certified, timed motion ``q_from → q_to`` (nq,) (see the module docstring)."""
+        started = time.perf_counter()
+        time_limit_s = real_scalar(time_limit_s, "time_limit_s", error=MotionPlanError, low=1e-3,
+                                   high=MAX_TIME_LIMIT_S, unit="s")
+        if not isinstance(planner, str) or planner not in PLANNERS:
+            raise MotionPlanError(f"planner must be one of {', '.join(PLANNERS)}, got {planner!r:.60}")
+        q_from, d_from = self.check_end(q_from, "q_from")
+        q_to, d_to = self.check_end(q_to, "q_to")
+        straight = self.certifier.segment(q_from, q_to, d_from, d_to, self.margin)
+        if straight.clear:
+            return self._trajectory(np.array([q_from, q_to]), np.array([d_from, d_to]), straight.bound, "straight",
+                                    started)
+        found = search(self.certifier, q_from, q_to, self.system.lower, self.system.upper, self.speed, self.margin,
+                       time_limit_s, planner)
+        if found.waypoints is None:
+            return self.failed(q_from, f"not found within {time_limit_s:g} s by OMPL's {PLANNERS[planner]} "
+                                       f"({found.states_checked} states, {found.edges_checked} edges checked; the "
+                                       f"direct segment is not clear: this does not prove that no path exists)",
+                               started)
+        Q, D = found.waypoints, found.distances
+        bound = math.inf
+        for i in range(len(Q) - 1):  # the path as returned (exact ends), certified again: cheap, distances known
+            check = self.certifier.segment(Q[i], Q[i + 1], D[i], D[i + 1], self.margin)
+            if not check.clear:
+                return self.failed(q_from, f"the path OMPL's {PLANNERS[planner]} returned did not certify again "
+                                           f"at segment {i}", started)
+            bound = min(bound, check.bound)
+        return self._trajectory(Q, D, bound, PLANNERS[planner], started)
+
+    def failed(self, q_from, reason: str, started: float) -> Trajectory:
+        q = np.asarray(q_from, float)[None]
+        return Trajectory(False, reason, q, np.zeros(1), math.nan, None, self.margin, "none",
+                          time.perf_counter() - started, self.system.joint_names)
+
+    def _trajectory(self, Q, D, clear_bound: float, method: str, started: float) -> Trajectory:
+        """The trajectory through ``Q`` (distances ``D``), certified clear with the bound ``clear_bound`` (m)."""
+        bound, _, pair, _ = self.certifier.minimum(Q, D)
+        bound = max(bound, clear_bound)  # two certified lower bounds of one minimum: the larger holds too
+        names = self.world.link_pairs()[pair] if pair >= 0 else None
+        law = TimeLaw(self.system.motion, Q)
+        return Trajectory(True, None, Q, law.times, bound, names, self.margin, method,
+                          time.perf_counter() - started, self.system.joint_names, law)
+
+
+def plan_motion(system, q_from, q_to, patient=None, margin: float = DEFAULT_MARGIN,
+                time_limit_s: float = DEFAULT_TIME_LIMIT_S, planner: str = "rrt-connect") -> Trajectory:
+    """The certified, timed motion of ``system`` from ``q_from`` to ``q_to`` (nq,) (m, rad) around ``patient``
+    keeping ``margin`` (m): :meth:`MotionPlanner.plan` (builds the world each call; to plan many motions,
+    build one :class:`MotionPlanner`)."""
+    return MotionPlanner(system, patient, margin).plan(q_from, q_to, time_limit_s, planner)
