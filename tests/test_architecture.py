@@ -34,6 +34,8 @@ LAYERS = (
     ("carmkin.qp",),
     ("carmkin.qp_ik",),
     ("carmkin.interop",),
+    # certified motion between configurations: on the world, under every planner (plan_view, plan_sweep use it)
+    ("carmkin.motion",),
     PLANNERS,
     # carmkin.biplane runs the view planner for each of its two planes: a study of the planner, not a planner
     ("carmkin.studies", "carmkin.reproduce", "carmkin.datasets", "carmkin.calibration", "carmkin.viz",

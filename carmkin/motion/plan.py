@@ -64,7 +64,6 @@ class MotionPlanner:
                 scale, unit = (1e3, "mm") if prismatic else (math.degrees(1.0), "°")
                 raise MotionPlanError(f"{name}: {r.name} = {v * scale:.6g} {unit} is outside its range "
                                       f"[{r.lower * scale:.6g}, {r.upper * scale:.6g}] {unit}")
-        q = np.clip(q, system.lower, system.upper)  # moves only values within the range tolerance of an end
         d = self.certifier.distances(q)
         if len(d) and d.min() < self.margin:
             k = int(np.argmin(d))
@@ -87,7 +86,10 @@ class MotionPlanner:
         if straight.clear:
             return self._trajectory(np.array([q_from, q_to]), np.array([d_from, d_to]), straight.bound, "straight",
                                     started)
-        found = search(self.certifier, q_from, q_to, self.system.lower, self.system.upper, self.speed, self.margin,
+        # OMPL sees the ends inside its bounds (a value within the range tolerance outside moves by round-off); the
+        # path returned starts and ends exactly at q_from and q_to and is certified again as returned
+        lower, upper = self.system.lower, self.system.upper
+        found = search(self.certifier, np.clip(q_from, lower, upper), np.clip(q_to, lower, upper), lower, self.system.upper, self.speed, self.margin,
                        time_limit_s, planner)
         if found.waypoints is None:
             return self.failed(q_from, f"not found within {time_limit_s:g} s by OMPL's {PLANNERS[planner]} "
@@ -95,6 +97,7 @@ class MotionPlanner:
                                        f"direct segment is not clear: this does not prove that no path exists)",
                                started)
         Q, D = found.waypoints, found.distances
+        Q[0], Q[-1], D[0], D[-1] = q_from, q_to, d_from, d_to
         bound = math.inf
         for i in range(len(Q) - 1):  # the path as returned (exact ends), certified again: cheap, distances known
             check = self.certifier.segment(Q[i], Q[i + 1], D[i], D[i + 1], self.margin)

@@ -33,7 +33,7 @@ class Trajectory:
     method: str
     planning_s: float
     joint_names: tuple[str, ...]
-    _law: object = field(default=None, repr=False, compare=False)
+    law: object = field(default=None, repr=False, compare=False)  # the TimeLaw (None when not found)
 
     @property
     def duration(self) -> float:
@@ -50,7 +50,7 @@ class Trajectory:
         if bad.any():
             raise MotionPlanError(f"t must lie in [0, {self.duration:.6g}] s (the trajectory's duration), got "
                                   f"{t[bad][0]:.6g} s")
-        return self._law.sample(t)
+        return self.law.sample(t)
 
     def __str__(self) -> str:
         if not self.success:
