@@ -217,9 +217,19 @@ class CArmViewer:
         """
         q_from = self.q if q_from is None else check_configuration(self.system, q_from, "q_from")
         q_to = check_configuration(self.system, q_to, "q_to")
+        return self.animate_path(interpolate(q_from, q_to, frames), fps, repetitions, play)
+
+    def animate_path(self, path, fps: float = 20.0, repetitions: int = 1, play: bool = True) -> np.ndarray:
+        """Animate the configurations ``path`` (frames, nq) (m, rad), one per frame at ``fps``: a planned
+        trajectory sampled at ``fps`` plays at its own speed (:meth:`animate` for a straight move). The robot
+        ends at the last configuration. Returns ``path``."""
+        path = np.asarray(path, dtype=float)
+        if path.ndim != 2 or path.shape[1] != self.system.nq or not len(path):
+            raise VisualizationError(f"path must have shape (frames, {self.system.nq}) (m, rad), got {path.shape}")
+        for q in path[[0, -1]]:
+            check_configuration(self.system, q, "path")
         if not fps > 0:
             raise VisualizationError(f"fps must be > 0, got {fps}")
-        path = interpolate(q_from, q_to, frames)
         self.root["distances"].delete()
         animation = Animation(default_framerate=fps)
         geometry_data = self.robot.visual_data
@@ -232,7 +242,7 @@ class CArmViewer:
                 frame[name].set_transform(geometry_data.oMg[gid].homogeneous)
             frame[f"{self.root_path}/cone"].set_transform(source)
             frame[f"{self.root_path}/frames/xray_source"].set_transform(source)
-        self.display(q_to)
+        self.display(path[-1])
         self.vis.set_animation(animation, play=play, repetitions=repetitions)
         return path
 

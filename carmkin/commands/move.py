@@ -8,7 +8,7 @@ every pair's distance bounded between samples by the chain's speed bounds), take
 when it is clear and otherwise a path found by OMPL's RRT-Connect within --time-limit-s; each straight segment
 is timed optimally within the preset's joint speeds and accelerations, from rest to rest. Printed: the
 waypoints, the duration (s) against today's joint-by-joint duration, and the certified clearance (mm).
---png draws clearance and joint speeds against time. Exit 1 when no motion is found.
+--png draws clearance and joint speeds against time; --html writes a page that plays the motion. Exit 1 when no motion is found.
 """
 
 from __future__ import annotations
@@ -44,6 +44,8 @@ def register(parser: argparse.ArgumentParser) -> None:
                       help="OMPL planner of the search (default rrt-connect)")
     common.add_json_argument(plan, "the motion")
     common.add_png_argument(plan, "clearance and joint speeds against time")
+    plan.add_argument("--html", metavar="FILE",
+                      help="write the motion as a page that plays it in the browser (meshcat, no server)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -99,4 +101,10 @@ def run(args: argparse.Namespace) -> int:
 
         trajectory_figure(planner, trajectory, args.png)
         print(f"wrote {args.png}")
+    if args.html:
+        from carmkin.viz.motion import animation_page
+
+        common.output_path(args.html, "--html", ("html", "htm")).write_text(
+            animation_page(planner, trajectory, patient), encoding="utf-8")
+        print(f"wrote {args.html}")
     return 0

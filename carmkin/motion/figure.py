@@ -37,3 +37,4 @@ def trajectory_figure(planner, trajectory, path=None):
     bottom.set_ylim(0.0, 105.0)
     bottom.legend(loc="upper right", fontsize="small", ncol=2)
     return plots.save(fig, path)
+
