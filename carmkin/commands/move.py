@@ -102,9 +102,9 @@ def run(args: argparse.Namespace) -> int:
         trajectory_figure(planner, trajectory, args.png)
         print(f"wrote {args.png}")
     if args.html:
-        from carmkin.viz.motion import animation_page
+        from carmkin.viz.motion import animation_viewer
 
         common.output_path(args.html, "--html", ("html", "htm")).write_text(
-            animation_page(planner, trajectory, patient), encoding="utf-8")
+            animation_viewer(planner, trajectory, patient).static_html(), encoding="utf-8")
         print(f"wrote {args.html}")
     return 0
