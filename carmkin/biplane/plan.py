@@ -54,7 +54,9 @@ class BiplanePlan:
     ``frontal`` and ``lateral`` each plane's :class:`~carmkin.views.ViewPlan` (``lateral`` ``None`` when the
     frontal view was unreachable); ``clearance`` the exact clearance (m) between the planes (NaN unless both
     views were planned) and ``pair`` its nearest (frontal, lateral) geometries; ``angle`` (rad) between the two
-    planned beams; ``failure`` and ``reason`` when it failed; ``order`` the plane planned first."""
+    planned beams; ``failure`` and ``reason`` when it failed; ``order`` the plane planned first; ``motion``: with
+    ``q_current``, both planes moved together to ``q`` (a :class:`carmkin.motion.Trajectory`, the planes certified
+    clear of each other and of table, floor and patient along it), or None."""
 
     success: bool
     q: np.ndarray
@@ -66,6 +68,7 @@ class BiplanePlan:
     failure: Failure | None = None
     reason: str | None = None
     order: str = "frontal"
+    motion: object = None
 
 
 def lateral_view(frontal: View, angle_deg: float = 90.0, position="HFS", name: str = "") -> View:
@@ -124,7 +127,8 @@ def _plan_pair(biplane, world, views, q_ref, patient, margin, first: str):
     systems = {"frontal": biplane.frontal, "lateral": biplane.lateral}
     second = "lateral" if first == "frontal" else "frontal"
     refs = dict(zip(("frontal", "lateral"), biplane.planes_q(q_ref)))
-    plans = {first: plan_view(systems[first], views[first], patient, refs[first], margin=margin, nearest=False)}
+    plans = {first: plan_view(systems[first], views[first], patient, refs[first], margin=margin, nearest=False,
+                              motion_plan=False)}
     if not plans[first].success:
         return plans, Failure[f"{first.upper()}_UNREACHABLE"], plans[first].reason
     k = biplane.table_nq
@@ -133,13 +137,28 @@ def _plan_pair(biplane, world, views, q_ref, patient, margin, first: str):
     q_second = refs[second].copy()
     q_second[:k] = q_first[:k]
     pinned = _pinned(systems[second], float(q_first[0]))
-    plan = plan_view(pinned, views[second], obstacles, q_second, margin=margin, nearest=False, qp=False)
+    plan = plan_view(pinned, views[second], obstacles, q_second, margin=margin, nearest=False, qp=False,
+                     motion_plan=False)
     plans[second] = plan
     if not plan.success:
         reason = (f"with the table where the {first} view puts it ({biplane.joint_names[0]} = "
                   f"{q_first[0] * 1e3:.1f} mm) and clear of the {first} plane: {plan.reason}")
         return plans, Failure[f"{second.upper()}_UNREACHABLE"], reason
     return plans, None, None
+
+
+def _motion(biplane: Biplane, patient, q_from, q_to):
+    """Both planes moved together from ``q_from`` to ``q_to`` keeping the moves' path clearance (as
+    :func:`carmkin.views.plan_view` does), or a failed trajectory saying why."""
+    from carmkin.errors import MotionPlanError
+    from carmkin.motion import MotionPlanner
+    from carmkin.views.plan import PATH_CLEARANCE
+
+    planner = MotionPlanner(biplane, patient, PATH_CLEARANCE)
+    try:
+        return planner.plan(q_from, q_to)
+    except MotionPlanError as exc:
+        return planner.failed(q_from, str(exc))
 
 
 def plan_biplane(biplane: Biplane, frontal_view, lateral=90.0, patient=None, q_current=None, *,
@@ -150,7 +169,8 @@ def plan_biplane(biplane: Biplane, frontal_view, lateral=90.0, patient=None, q_c
     ``lateral``: a View, a standard view's name, or the angle (deg) between the beams (:func:`lateral_view`,
     about the patient's long axis; default 90°). ``patient``: a patient model or a list of obstacles (its
     position, if it has one, orients the standard views and the turn). ``q_current``: the biplane
-    configuration (nq,) the least motion is counted from (default ``biplane.rest``). Every pair — plane to
+    configuration (nq,) the least motion is counted from (default ``biplane.rest``), and with it both planes'
+    certified motion there (``BiplanePlan.motion``). Every pair — plane to
     plane, each plane to table, floor and patient — keeps ``margin`` (m).
 
     Returns a :class:`BiplanePlan`; it never raises for an unreachable pair (``failure`` says why)."""
@@ -180,7 +200,8 @@ def plan_biplane(biplane: Biplane, frontal_view, lateral=90.0, patient=None, q_c
             check = world.clearance(q)
             if check.minimum >= margin:
                 return BiplanePlan(True, q, plans["frontal"], plans["lateral"], check.planes, check.pair,
-                                   plans["frontal"].view.angle_to(plans["lateral"].view), order=first)
+                                   plans["frontal"].view.angle_to(plans["lateral"].view), order=first,
+                                   motion=None if q_current is None else _motion(biplane, patient, q_ref, q))
             failure, reason = Failure.PLANES_COLLIDE, (
                 f"{check.pair[0]} (frontal) and {check.pair[1]} (lateral) {check.planes * 1e3:.1f} mm apart, "
                 f"below the margin of {margin * 1e3:.0f} mm")
@@ -189,6 +210,6 @@ def plan_biplane(biplane: Biplane, frontal_view, lateral=90.0, patient=None, q_c
             break
     plans, failure, reason = failures[-1] if failures[-1][1].name.startswith(first.upper()) else failures[0]
     frontal_plan = plans.get("frontal") or plan_view(biplane.frontal, frontal, patient, biplane.planes_q(q_ref)[0],
-                                                     margin=margin, nearest=False)
+                                                     margin=margin, nearest=False, motion_plan=False)
     return BiplanePlan(False, np.full(biplane.nq, np.nan), frontal_plan, plans.get("lateral"), math.nan, None,
                        math.nan, failure, f"{failure.value}: {reason}")

@@ -64,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
         from carmkin.views.standard import standard_view
 
         view = standard_view(args.to_view)
-        view_plan = plan_view(system, view, patient, start, margin=args.margin_mm / MM)
+        view_plan = plan_view(system, view, patient, start, margin=args.margin_mm / MM, motion_plan=False)
         if not view_plan.success:
             print(f"view {args.to_view} not reachable: {view_plan.reason}")
             return 1

@@ -191,6 +191,8 @@ def _print_plan(system, plan, position) -> None:
             print(f"  move {m.joint}: {'clear' if m.clear else 'blocked'}" + (f" ({m.reason})" if m.reason else ""))
         if plan.moves and plan.duration is not None:
             print(f"  moves take {plan.duration}")
+        if plan.motion is not None:
+            print(f"  certified motion (every joint at once): {plan.motion}")
         return
     print(f"unreachable: {plan.reason}")
     if plan.nearest is not None:
@@ -208,6 +210,11 @@ def _plan_json(system, plan, position) -> dict:
                    rotation_deg=_rotation(system, plan.q, position),
                    clearance_to_mm={k: v * MM for k, v in (plan.clearance_to or {}).items()},
                    duration_s=plan.duration.seconds if plan.duration is not None else None)
+        if plan.motion is not None:
+            out["motion"] = {"success": plan.motion.success, "reason": plan.motion.reason,
+                             "method": plan.motion.method, "duration_s": plan.motion.duration,
+                             "min_clearance_mm": plan.motion.min_clearance * MM,
+                             "waypoints": [common.joints_json(system, q) for q in plan.motion.waypoints]}
     if plan.nearest is not None:
         out["nearest"] = {"angles_deg": list(plan.nearest.view.angles(position)), "angle_deg": float(np.degrees(plan.angle)),
                           "q": common.joints_json(system, plan.nearest.q), "clearance_mm": plan.nearest.clearance * MM}

@@ -27,7 +27,7 @@ from carmkin.validation import JOINT_VALUE_LIMIT, real_array, real_scalar
 from carmkin.world import DEFAULT_MARGIN, World
 from carmkin.world.obstacles import link_of
 
-from .certificate import Certifier
+from .scene import scene_of
 from .search import PLANNERS, search
 from .time_law import TimeLaw
 from .trajectory import Trajectory
@@ -39,27 +39,23 @@ MAX_TIME_LIMIT_S = 600.0
 
 
 class MotionPlanner:
-    """Plans motions of ``system`` around ``patient`` (as everywhere: None, a patient model or a list of
-    obstacles) keeping ``margin`` (m); ``world``: a :class:`carmkin.world.World` of the system to reuse."""
+    """Plans motions of ``system`` (a system, or a :class:`~carmkin.model.biplane.Biplane`: both planes' joints in
+    one state, the planes kept clear of each other too) around ``patient`` (as everywhere: None, a patient model
+    or a list of obstacles) keeping ``margin`` (m); ``world``: a :class:`carmkin.world.World` of a single system
+    to reuse. ``scene`` (:class:`carmkin.motion.scene.Scene`), ``certifier`` and ``world`` (None for a biplane)
+    are what it measures with."""
 
     def __init__(self, system, patient=None, margin: float = DEFAULT_MARGIN, world: World | None = None) -> None:
         self.margin = real_scalar(margin, "margin", error=MotionPlanError, low=0.0, high=1.0, unit="m")
-        if world is None:
-            world = World(system, patient)
-        elif world.system is not system:
-            raise MotionPlanError("world belongs to another system: build it as carmkin.world.World(system, patient)")
-        if system.motion is None:
-            raise MotionPlanError(f"system {system.name!r} has no joint speeds ([motion] in its preset): a motion "
-                                  f"cannot be timed")
-        self.system, self.world = system, world
-        self.certifier = Certifier.for_world(world)
-        self.speed = np.array([j.speed for j in system.motion.joints])
+        self.scene = scene_of(system, patient, world)
+        self.system, self.world, self.certifier = system, self.scene.world, self.scene.certifier
+        self.speed = np.array([j.speed for j in self.scene.motion.joints])
 
     def check_end(self, q, name: str) -> tuple[np.ndarray, np.ndarray]:
         """``q`` (nq,) as a float array in range and clear of the margin, with its exact distances (P,)."""
-        system = self.system
-        q = real_array(q, name, (system.nq,), error=MotionPlanError, limit=JOINT_VALUE_LIMIT, unit="m, rad")
-        for r, v, prismatic in zip(system.joint_ranges, q.tolist(), system.prismatic):
+        scene = self.scene
+        q = real_array(q, name, (scene.nq,), error=MotionPlanError, limit=JOINT_VALUE_LIMIT, unit="m, rad")
+        for r, v, prismatic in zip(scene.joint_ranges, q.tolist(), scene.prismatic):
             if not r.contains(v):
                 scale, unit = (1e3, "mm") if prismatic else (math.degrees(1.0), "°")
                 raise MotionPlanError(f"{name}: {r.name} = {v * scale:.6g} {unit} is outside its range "
@@ -67,7 +63,7 @@ class MotionPlanner:
         d = self.certifier.distances(q)
         if len(d) and d.min() < self.margin:
             k = int(np.argmin(d))
-            a, b = self.world.link_pairs()[k]
+            a, b = scene.pair_names[k]
             raise MotionPlanError(f"{name} is not clear of the {self.margin * 1e3:g} mm margin: {a} is "
                                   f"{d[k] * 1e3:.1f} mm from {b}")
         return q, d
@@ -88,9 +84,9 @@ class MotionPlanner:
                                     started)
         # OMPL sees the ends inside its bounds (a value within the range tolerance outside moves by round-off); the
         # path returned starts and ends exactly at q_from and q_to and is certified again as returned
-        lower, upper = self.system.lower, self.system.upper
-        found = search(self.certifier, np.clip(q_from, lower, upper), np.clip(q_to, lower, upper), lower, self.system.upper, self.speed, self.margin,
-                       time_limit_s, planner)
+        lower, upper = self.scene.lower, self.scene.upper
+        found = search(self.certifier, np.clip(q_from, lower, upper), np.clip(q_to, lower, upper), lower, upper,
+                       self.speed, self.margin, time_limit_s, planner)
         if found.waypoints is None:
             return self.failed(q_from, f"not found within {time_limit_s:g} s by OMPL's {PLANNERS[planner]} "
                                        f"({found.states_checked} states, {found.edges_checked} edges checked; the "
@@ -107,24 +103,27 @@ class MotionPlanner:
             bound = min(bound, check.bound)
         return self._trajectory(Q, D, bound, PLANNERS[planner], started)
 
-    def failed(self, q_from, reason: str, started: float) -> Trajectory:
+    def failed(self, q_from, reason: str, started: float | None = None) -> Trajectory:
+        """A trajectory that was not found, starting at ``q_from``, and why (``started``: perf_counter at the
+        query's start, for its planning time)."""
         q = np.asarray(q_from, float)[None]
-        return Trajectory(False, reason, q, np.zeros(1), math.nan, None, self.margin, "none",
-                          time.perf_counter() - started, self.system.joint_names)
+        seconds = 0.0 if started is None else time.perf_counter() - started
+        return Trajectory(False, reason, q, np.zeros(1), math.nan, None, self.margin, "none", seconds,
+                          self.scene.joint_names)
 
     def _trajectory(self, Q, D, clear_bound: float, method: str, started: float) -> Trajectory:
         """The trajectory through ``Q`` (distances ``D``), certified clear with the bound ``clear_bound`` (m)."""
         bound, _, pair, _ = self.certifier.minimum(Q, D)
         bound = max(bound, clear_bound)  # two certified lower bounds of one minimum: the larger holds too
-        names = self.world.link_pairs()[pair] if pair >= 0 else None
-        law = TimeLaw(self.system.motion, Q)
+        names = self.scene.pair_names[pair] if pair >= 0 else None
+        law = TimeLaw(self.scene.motion, Q)
         return Trajectory(True, None, Q, law.times, bound, names, self.margin, method,
-                          time.perf_counter() - started, self.system.joint_names, law)
+                          time.perf_counter() - started, self.scene.joint_names, law)
 
 
 def plan_motion(system, q_from, q_to, patient=None, margin: float = DEFAULT_MARGIN,
                 time_limit_s: float = DEFAULT_TIME_LIMIT_S, planner: str = "rrt-connect") -> Trajectory:
-    """The certified, timed motion of ``system`` from ``q_from`` to ``q_to`` (nq,) (m, rad) around ``patient``
-    keeping ``margin`` (m): :meth:`MotionPlanner.plan` (builds the world each call; to plan many motions,
+    """The certified, timed motion of ``system`` (a system or a biplane) from ``q_from`` to ``q_to`` (nq,) (m, rad)
+    around ``patient`` keeping ``margin`` (m): :meth:`MotionPlanner.plan` (builds the world each call; to plan many motions,
     build one :class:`MotionPlanner`)."""
     return MotionPlanner(system, patient, margin).plan(q_from, q_to, time_limit_s, planner)

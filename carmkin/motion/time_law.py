@@ -8,7 +8,7 @@ system's :class:`~carmkin.model.motion.Motion` become one limit on the path para
     ṡ ≤ v_s = min_j v_j / |Δq_j|,     |s̈| ≤ a_s = min_j a_j / |Δq_j|      (joints with Δq_j ≠ 0),
 
 and the time-optimal rest-to-rest motion along the segment is the trapezoid (or triangle) in s of
-:func:`carmkin.model.motion.joint_time` with ``d = 1`` (Siciliano et al. 2009, §4.2.1; the same result as
+``carmkin.model.motion.joint_time`` with ``d = 1`` (Siciliano et al. 2009, §4.2.1; the same result as
 time-optimal path parameterization of a straight line, e.g. toppra, which the tests hold it to). At a waypoint
 the direction of motion changes, so a path through it without stopping would need an unbounded acceleration:
 every segment starts and ends at rest. Joints whose acceleration is not known reach their speed at once
@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from carmkin.errors import MotionError
-from carmkin.model.motion import Motion, joint_time
+from carmkin.model.motion import Motion
 
 
 @dataclass(frozen=True)
@@ -69,9 +69,9 @@ def segment_law(motion: Motion, delta: np.ndarray) -> SegmentLaw:
     a = float(np.min(accel / d))
     if math.isinf(a):
         return SegmentLaw(v, a, 1.0 / v)
-    T = joint_time(1.0, v, a)
-    peak = v if 1.0 >= v * v / a else math.sqrt(a)  # triangular: the peak rate of s
-    return SegmentLaw(peak, a, T)
+    if 1.0 >= v * v / a:  # trapezoid: joint_time(1, v, a) written out (a round-off move gives huge v, a: no check)
+        return SegmentLaw(v, a, 1.0 / v + v / a)
+    return SegmentLaw(math.sqrt(a), a, 2.0 / math.sqrt(a))  # triangle: peak rate of s √a
 
 
 class TimeLaw:

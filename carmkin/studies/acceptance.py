@@ -191,7 +191,7 @@ def dicom_round_trip(system: CArmSystem, n: int = 50, seed: int = 0, position: s
         if abs(abs(secondary) - 90.0) < 1e-6:  # the primary angle is undefined there
             continue
         iso = T[:3, 3] + system.carm.orbital_offset * T[:3, 2]
-        plan = plan_view(system, View.from_angles(primary, secondary, iso, position), q_current=q, nearest=False)
+        plan = plan_view(system, View.from_angles(primary, secondary, iso, position), q_current=q, nearest=False, motion_plan=False)
         if not plan.success:
             continue
         planned += 1

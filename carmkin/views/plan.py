@@ -62,7 +62,10 @@ class ViewPlan:
     carry ``x_axis`` (3,) the roll chosen (the source frame's x axis, table frame), ``clearance_to`` the exact
     clearance (m) to each of ``"patient"`` (every obstacle), ``"table"`` and ``"floor"``, and ``validity``
     the :class:`~carmkin.robot.validity.ValidityReport` at the margin, and ``duration`` (:class:`Duration
-    <carmkin.model.motion.Duration>`): the time of the moves from ``q_current`` (see the module docstring)."""
+    <carmkin.model.motion.Duration>`): the time of the moves from ``q_current`` (see the module docstring);
+    ``motion``: with ``q_current``, the certified multi-joint motion to the plan (a
+    :class:`carmkin.motion.Trajectory`: the straight line when it is clear, else planned with OMPL; ``success``
+    False with the reason when none was found in time), or None."""
 
     view: View
     success: bool
@@ -79,6 +82,7 @@ class ViewPlan:
     clearance_to: dict | None = None
     validity: object = None
     duration: motion.Duration | None = None
+    motion: object = None
 
 
 def patient_obstacles(patient) -> tuple:
@@ -196,14 +200,16 @@ def _resolve(view, patient) -> View:
 
 
 def plan_view(system, view, patient=None, q_current=None, *, margin: float = DEFAULT_MARGIN,
-              nearest: bool = True, table_samples=None, qp: bool = True) -> ViewPlan:
+              nearest: bool = True, table_samples=None, qp: bool = True, motion_plan: bool = True) -> ViewPlan:
     """Plan ``view`` (a :class:`View`, or a standard view's name: its target is then the table origin) on
     any ``system``: free roll and distance used for clearance (≥ ``margin``, m), then least motion from
     ``q_current`` (nq,) (default mid-range). ``patient``: a patient model or a list of
     :class:`~carmkin.robot.collision.Obstacle`. ``table_samples``: held configurations (k, nq) whose table
     joints a motorized table may take (default: those of the reference). ``qp``: when the closed form leaves
     the view unreachable on a motorized table, try again with its joints free (:mod:`carmkin.views.refine`;
-    :func:`reach_map` holds them)."""
+    :func:`reach_map` holds them). ``motion_plan``: with ``q_current``, also plan the certified motion to the view
+    (:func:`carmkin.motion.plan_motion`, keeping :data:`PATH_CLEARANCE`); False when ``q_current`` is only the
+    reference of least motion."""
     view = _resolve(view, patient)
     margin = real_scalar(margin, "margin", error=ViewError, low=0.0, high=1.0, unit="m")
     world = world_for(system, patient)
@@ -220,6 +226,8 @@ def plan_view(system, view, patient=None, q_current=None, *, margin: float = DEF
         plan = _with_report(plan, system, world, margin)
     if plan.success and q_current is not None:
         plan = _with_moves(plan, system, world, q_ref)
+        if motion_plan and system.motion is not None:
+            plan = _with_motion(plan, system, world, q_ref)
     if plan.success:
         plan = _replace(plan, duration=motion.unknown(motion.Timing.JOINT_BY_JOINT, NO_MOVE) if q_current is None
                         else motion.system_move(system, q_ref, plan.q, motion.Timing.JOINT_BY_JOINT))
@@ -250,6 +258,19 @@ def _with_report(plan: ViewPlan, system, world, margin: float) -> ViewPlan:
 def _with_moves(plan: ViewPlan, system, world, q_from) -> ViewPlan:
     """The joint-by-joint moves from ``q_from`` to the plan (:meth:`carmkin.world.World.moves`)."""
     return _replace(plan, moves=world.moves(q_from, plan.q, clearance=PATH_CLEARANCE))
+
+
+def _with_motion(plan: ViewPlan, system, world, q_from) -> ViewPlan:
+    """The certified motion from ``q_from`` to the plan, keeping :data:`PATH_CLEARANCE` (as the moves do): a
+    start closer than that to something has none (its reason says so)."""
+    from carmkin.errors import MotionPlanError
+    from carmkin.motion import MotionPlanner
+
+    planner = MotionPlanner(system, margin=PATH_CLEARANCE, world=world)
+    try:
+        return _replace(plan, motion=planner.plan(q_from, plan.q))
+    except MotionPlanError as exc:
+        return _replace(plan, motion=planner.failed(q_from, str(exc)))
 
 
 def _replace(plan, **changes):

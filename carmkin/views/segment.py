@@ -50,7 +50,7 @@ def plan_perpendicular(system, a, b, patient=None, q_current=None, *, prefer=Non
     reachable = order[out.reachable[order]]
     chosen = family[int(reachable[0] if len(reachable) else order[0])]
     plan = plan_view(system, chosen, patient, q_current, margin=margin, nearest=False, table_samples=table_samples,
-                     qp=bool(system.mount.joints))
+                     qp=bool(system.mount.joints), motion_plan=False)
     if not len(reachable):
         from dataclasses import replace
 

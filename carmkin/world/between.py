@@ -86,6 +86,24 @@ class Between:
         tf_b, _ = b.place(self._q(q_b, 1))
         return np.array([self._distance(i, j, tf_a, tf_b) for i in range(len(a.index)) for j in range(len(b.index))])
 
+    def pair_distances(self, q_a, q_b, pairs) -> np.ndarray:
+        """Signed distances (m) of the pairs ``pairs`` (K,) (indices into :attr:`pairs`) at ``q_a`` and ``q_b``."""
+        a, b = self._sides
+        tf_a, _ = a.place(self._q(q_a, 0))
+        tf_b, _ = b.place(self._q(q_b, 1))
+        nb = len(b.index)
+        return np.array([self._distance(k // nb, k % nb, tf_a, tf_b) for k in np.asarray(pairs).tolist()], dtype=float)
+
+    def rates(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(R_a (n_pairs, nv_a), R_b (n_pairs, nv_b))``: how fast each pair's first and second geometry can move
+        per unit rate of its own world's joints (:func:`carmkin.world.swept.geometry_rates`)."""
+        from .swept import geometry_rates
+
+        a, b = self._sides
+        ra, rb = geometry_rates(a.world)[a.index], geometry_rates(b.world)[b.index]
+        nb = len(b.index)
+        return np.repeat(ra, nb, axis=0), np.tile(rb, (len(a.index), 1))
+
     def nearest(self, Q_a, Q_b) -> tuple[np.ndarray, np.ndarray]:
         """``(distance (N,), pair (N,))``: the exact smallest signed distance (m) over the pairs of each row of
         ``Q_a`` (N, nq_a) and ``Q_b`` (N, nq_b), and the index into :attr:`pairs` that holds it."""

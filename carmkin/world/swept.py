@@ -59,8 +59,10 @@ def bounding_radius(geometry) -> float:
     return float(max(np.linalg.norm(aabb.min_), np.linalg.norm(aabb.max_)))
 
 
-def speed_bounds(world) -> np.ndarray:
-    """``S`` (n_pairs, nv): ``|∂d_k/∂q_j| ≤ S[k, j]`` for every configuration (m per m or rad)."""
+def geometry_rates(world) -> np.ndarray:
+    """``R`` (n_geometries, nv): how fast (m per m or rad) any point of each geometry of ``world`` can move for a
+    unit rate of each joint, for every configuration (the point-speed bound of the module docstring; 0 for the
+    joints that do not carry it)."""
     model = world.model
     objects = world.geometry_model.geometryObjects
     lower, upper = np.array(model.lowerPositionLimit), np.array(model.upperPositionLimit)
@@ -71,27 +73,28 @@ def speed_bounds(world) -> np.ndarray:
             i = model.joints[j].idx_q
             extent[j] = max(abs(lower[i]), abs(upper[i]))
     link = np.array([np.linalg.norm(model.jointPlacements[j].translation) for j in range(model.njoints)]) + extent
-
-    def per_geometry(index: int) -> np.ndarray:
-        obj = objects[index]
+    R = np.zeros((len(objects), model.nv))
+    for index, obj in enumerate(objects):
         reach = np.linalg.norm(obj.placement.translation) + bounding_radius(obj.geometry)
-        rates = np.zeros(model.nv)
         chain = list(model.supports[obj.parentJoint])[1:]  # root side first, the parent joint last
         for pos, j in enumerate(chain):
-            idx = model.joints[j].idx_v
-            rates[idx] = 1.0 if prismatic[j] else reach + sum(link[k] for k in chain[pos + 1:])
-        return rates
-
-    cache: dict[int, np.ndarray] = {}
-    S = np.zeros((len(world.pairs), model.nv))
-    for k, pair in enumerate(world.geometry_model.collisionPairs):
-        a = cache.setdefault(pair.first, per_geometry(pair.first))
-        b = cache.setdefault(pair.second, per_geometry(pair.second))
-        only_one = (a > 0) != (b > 0)
-        S[k] = np.where(only_one, a + b, 0.0)
-    return S
+            R[index, model.joints[j].idx_v] = 1.0 if prismatic[j] else reach + sum(link[k] for k in chain[pos + 1:])
+    return R
 
 
+def pair_rates(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Speed bounds of pairs whose geometries move at rates ``a`` and ``b`` (…, nv): their sum, except on a joint
+    that carries both geometries, which moves them rigidly together and does not change their distance."""
+    return np.where((a > 0) != (b > 0), a + b, 0.0)
+
+
+def speed_bounds(world) -> np.ndarray:
+    """``S`` (n_pairs, nv): ``|∂d_k/∂q_j| ≤ S[k, j]`` for every configuration (m per m or rad)."""
+    R = geometry_rates(world)
+    pairs = world.geometry_model.collisionPairs
+    first = np.array([p.first for p in pairs], dtype=int)
+    second = np.array([p.second for p in pairs], dtype=int)
+    return pair_rates(R[first], R[second]).reshape(len(pairs), world.model.nv)
 
 
 @dataclass(frozen=True)
