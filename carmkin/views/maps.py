@@ -17,7 +17,7 @@ import numpy as np
 from carmkin.errors import ViewError
 from carmkin.validation import integer, real_array, real_scalar
 
-from . import refine, search
+from . import mount, refine, search
 from .plan import DEFAULT_MARGIN, _table_samples, beam_directions, reference, world_for
 from .view import _patient_frame, _point
 
@@ -81,9 +81,12 @@ def reach_map(system, target, primary_deg=np.arange(-90, 91), secondary_deg=np.a
     ctx = search.make_context(system, world, margin, reference(system, None), _table_samples(system, table_samples))
     n = len(directions)
     ranges = np.tile([0.0, system.carm.source_to_detector], (n, 1))
-    out = search.solve_cells(ctx, np.tile(target, (n, 1)), directions, ranges, workers=_workers(workers))
-    if system.mount.joints:  # the closed form holds a mount's joints (a robot's): the QP frees them, cell by cell
-        out = _with_qp(ctx, target, directions, ranges, out, _workers(workers))
+    targets = np.tile(target, (n, 1))
+    out = search.solve_cells(ctx, targets, directions, ranges, workers=_workers(workers))
+    if system.mount.joints:  # the search holds a mount's joints (a robot's): its closed form frees them
+        out = mount.with_mount(ctx, out, targets, directions, ranges)
+        if not mount.applies(system):  # a mount without one: the QP frees them, cell by cell
+            out = _with_qp(ctx, target, directions, ranges, out, _workers(workers))
     shape = (len(p), len(s))
     return ReachMap(p, s, target, directions.reshape(shape + (3,)), out.reachable.reshape(shape),
                     out.q.reshape(shape + (system.nq,)), out.clearance.reshape(shape), out.distance.reshape(shape),

@@ -34,7 +34,7 @@ from carmkin.validation import real_array, real_scalar
 from carmkin.world import DEFAULT_MARGIN, DEFAULT_PATH_CLEARANCE, Move, Obstacle, World  # noqa: F401 (Move: views.Move)
 from carmkin.world.obstacles import as_obstacles
 
-from . import refine, search
+from . import mount, refine, search
 from .view import View, _patient_frame
 
 #: Clearance (m) kept along the swept moves (below the margin, so the goal's neighbourhood is reachable).
@@ -234,6 +234,8 @@ def _plan_cells(ctx, views) -> list[ViewPlan]:
     ranges = np.vstack([distance_range(ctx.system, v) for v in views])
     x_axes = np.array([v.x_axis if v.x_axis is not None else (np.nan,) * 3 for v in views], dtype=float)
     out = search.solve_cells(ctx, targets, directions, ranges, x_axes)
+    if ctx.system.mount.joints:  # the search holds a robot's joints: its closed form frees them
+        out = mount.with_mount(ctx, out, targets, directions, ranges, x_axes)
     return [ViewPlan(v, bool(out.reachable[i]), out.q[i], float(out.clearance[i]), float(out.distance[i]),
                      out.reason[i], str(out.binding[i])) for i, v in enumerate(views)]
 
