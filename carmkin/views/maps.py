@@ -83,10 +83,8 @@ def reach_map(system, target, primary_deg=np.arange(-90, 91), secondary_deg=np.a
     ranges = np.tile([0.0, system.carm.source_to_detector], (n, 1))
     targets = np.tile(target, (n, 1))
     out = search.solve_cells(ctx, targets, directions, ranges, workers=_workers(workers))
-    if system.mount.joints:  # the search holds a mount's joints (a robot's): its closed form frees them
-        out = mount.with_mount(ctx, out, targets, directions, ranges)
-        if not mount.applies(system):  # a mount without one: the QP frees them, cell by cell
-            out = _with_qp(ctx, target, directions, ranges, out, _workers(workers))
+    if system.mount.joints:
+        out = free_mount(ctx, targets, directions, ranges, out, _workers(workers))
     shape = (len(p), len(s))
     return ReachMap(p, s, target, directions.reshape(shape + (3,)), out.reachable.reshape(shape),
                     out.q.reshape(shape + (system.nq,)), out.clearance.reshape(shape), out.distance.reshape(shape),
@@ -135,6 +133,18 @@ def _with_qp(ctx, target, directions, ranges, out, workers: int):
             fields["clearance"][k], fields["distance"][k] = clearance, distance
             fields["reason"][k], fields["binding"][k], fields["rank"][k] = None, "", QP_RANK
     return type(out)(**fields)
+
+
+def free_mount(ctx, targets, directions, ranges, out, workers: int):
+    """``out`` (the search with a mount's joints held, a robot's) with the cells it left unreachable freed: by the
+    mount's closed form (:mod:`carmkin.views.mount`) where the robot has one, else by the QP cell by cell
+    (:func:`_with_qp`; the targets are one point). The closed form's sampled search is the map's answer for
+    such a robot: it reached every cell the QP reached on the benchmark maps (benchmarks/bench_robot_reach.py)
+    at a fraction of its cost; :func:`~carmkin.views.plan_view` still asks the QP for a view it leaves
+    unreachable."""
+    if mount.applies(ctx.system):
+        return mount.with_mount(ctx, out, targets, directions, ranges)
+    return _with_qp(ctx, targets[0], directions, ranges, out, workers)
 
 
 def default_workers() -> int:

@@ -10,7 +10,7 @@ likeliest to the rarest (:data:`PASSES`):
 
 1. the isocentric distance (the target at the C's isocentre, ``s`` = the source–isocentre distance
    ``carm.orbital_offset``, or the nearest distance of the view's range), the reference orbital, rolls every
-   :data:`ROLL_STEP_DEG` × 2, then the rolls between them;
+   :data:`ROLL_STEP_DEG` × :data:`FIRST_ROLLS_EVERY` (60°), then the rolls between them;
 2. the other orbital values of :data:`ORBITAL_OFFSETS_DEG` (from the reference, those in range), every roll;
 3. the other distances of :data:`DISTANCE_FRACTIONS` of the view's range, every roll and orbital value.
 
@@ -36,6 +36,8 @@ from .search import Outcome, _roll_basis
 
 #: Roll samples about the beam are this far apart (deg): 24 a turn.
 ROLL_STEP_DEG = 15.0
+#: The first pass samples every this many rolls (every 60°: most cells are answered there), the second the rest.
+FIRST_ROLLS_EVERY = 4
 #: Orbital values tried after the reference's, as offsets from it (deg); those out of range are skipped.
 ORBITAL_OFFSETS_DEG = (30.0, -30.0, 60.0, -60.0, 90.0, -90.0)
 #: Source–target distances tried after the isocentric one, as fractions of the view's distance range.
@@ -66,7 +68,8 @@ def _passes(system, q_ref) -> list[tuple[str, np.ndarray, np.ndarray]]:
     ref = float(q_ref[orbital])
     lo, hi = system.lower[orbital], system.upper[orbital]
     others = [ref + math.radians(o) for o in ORBITAL_OFFSETS_DEG if lo <= ref + math.radians(o) <= hi]
-    out = [("iso", np.array([ref]), rolls[0::2]), ("iso", np.array([ref]), rolls[1::2])]
+    first = rolls[0::FIRST_ROLLS_EVERY]
+    out = [("iso", np.array([ref]), first), ("iso", np.array([ref]), np.setdiff1d(rolls, first))]
     out += [("iso", np.array([value]), rolls) for value in others]
     out += [(str(f), np.array([ref] + others), rolls) for f in DISTANCE_FRACTIONS]
     return out
