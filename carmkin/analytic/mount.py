@@ -181,7 +181,8 @@ def raw_branches(ik: MountIK, G, reference):
     # 3. q2: about axis 2, x to moved
     q2 = _angle_about(w[1], x - p[1], moved[:, :, None, :] - p[1], reference[:, None, None, 1])
     R2 = _rotations(w[1], q2)
-    R123 = R1[:, :, None] @ R2 @ R3  # (N, 2, 2, 3, 3)
+    # axes 2 and 3 parallel (or opposed: σ = ω2·ω3 = ±1): R2 R3 is one rotation about ω2 by q2 + σ q3
+    R123 = R1[:, :, None] @ _rotations(w[1], q2 + (w[1] @ w[2]) * q3)  # (N, 2, 2, 3, 3)
     Rw = np.swapaxes(R123, -1, -2) @ R[:, None, None]  # the wrist's rotation
     # 4. q4, q5: R4 R5 ω6 = Rw ω6 (subproblem 2)
     goal = Rw @ w[5]  # (N, 2, 2, 3)

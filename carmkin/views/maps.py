@@ -143,7 +143,7 @@ def free_mount(ctx, targets, directions, ranges, out, workers: int):
     at a fraction of its cost; :func:`~carmkin.views.plan_view` still asks the QP for a view it leaves
     unreachable."""
     if mount.applies(ctx.system):
-        return mount.with_mount(ctx, out, targets, directions, ranges)
+        return mount.with_mount(ctx, out, targets, directions, ranges, workers=workers)
     return _with_qp(ctx, targets[0], directions, ranges, out, workers)
 
 

@@ -26,12 +26,14 @@ cell did before. Lengths in m, angles in rad.
 from __future__ import annotations
 
 import math
+import multiprocessing
 
 import numpy as np
 
 from carmkin.analytic import mount as mount_ik
 from carmkin.errors import UnsupportedMountError
 
+from . import search
 from .search import Outcome, _roll_basis
 
 #: Roll samples about the beam are this far apart (deg): 24 a turn.
@@ -180,18 +182,51 @@ def solve_cells(ctx, targets, directions, distance_range, x_axes=None) -> Outcom
     return Outcome(reachable, q_out, clearance, distance, reason, binding, rank)
 
 
-def with_mount(ctx, out: Outcome, targets, directions, distance_range, x_axes=None) -> Outcome:
+def with_mount(ctx, out: Outcome, targets, directions, distance_range, x_axes=None, workers: int = 1) -> Outcome:
     """``out`` (the search with the mount held, :func:`carmkin.views.search.solve_cells`) with the cells it left
     unreachable searched by :func:`solve_cells`: a cell either reaches keeps its answer (the held search's
-    first), the others the reason of this search. ``out`` unchanged where the mount has no closed form."""
+    first), the others the reason of this search. ``out`` unchanged where the mount has no closed form. With
+    ``workers`` > 1 and at least :data:`~carmkin.views.search.PARALLEL_MIN_CELLS` cells, in blocks over that
+    many forked processes (cells are independent: the same answers)."""
     import dataclasses
 
     cells = np.flatnonzero(~out.reachable)
     if not len(cells) or not applies(ctx.system):
         return out
-    x = None if x_axes is None else np.asarray(x_axes, dtype=float)[cells]
-    found = solve_cells(ctx, targets[cells], directions[cells], distance_range[cells], x)
+    x = np.full((len(cells), 3), np.nan) if x_axes is None else np.asarray(x_axes, dtype=float)[cells]
+    args = (targets[cells], directions[cells], distance_range[cells], x)
+    if workers > 1 and len(cells) >= search.PARALLEL_MIN_CELLS and "fork" in multiprocessing.get_all_start_methods():
+        found = _parallel(ctx, args, workers)
+    else:
+        found = solve_cells(ctx, *args)
     fields = {f.name: getattr(out, f.name).copy() for f in dataclasses.fields(out)}
     for name in fields:
         fields[name][cells] = getattr(found, name)
     return type(out)(**fields)
+
+
+#: What the forked workers of :func:`_parallel` search: set before the fork, read by :func:`_block`.
+_FORKED = None
+
+
+def _block(bounds) -> Outcome:
+    ctx, args = _FORKED
+    a, b = bounds
+    return solve_cells(ctx, *(v[a:b] for v in args))
+
+
+def _parallel(ctx, args, workers: int) -> Outcome:
+    """:func:`solve_cells` in blocks of :data:`~carmkin.views.search.CHUNK` cells over ``workers`` forked
+    processes that inherit the world (coal's shapes cannot be pickled)."""
+    import dataclasses
+
+    global _FORKED
+    N, size = len(args[0]), search.CHUNK
+    blocks = [(a, min(a + size, N)) for a in range(0, N, size)]
+    _FORKED = (ctx, args)
+    try:
+        with multiprocessing.get_context("fork").Pool(min(workers, len(blocks))) as pool:
+            parts = pool.map(_block, blocks, chunksize=1)
+    finally:
+        _FORKED = None
+    return Outcome(*(np.concatenate([getattr(p, f.name) for p in parts]) for f in dataclasses.fields(Outcome)))

@@ -79,3 +79,17 @@ def test_a_target_out_of_the_robots_reach_is_unreachable_with_its_reason():
     assert set(reach.binding.ravel()) == {"mount"}
     assert all("out of reach" in reason or "joint limits" in reason for reason in reach.reason.ravel())
     assert np.isnan(reach.q).all()
+
+
+def test_worker_processes_give_the_answers_of_one(monkeypatch):
+    """A map split over forked workers (the threshold lowered to this small map) answers as one process."""
+    from carmkin.views import search
+
+    primary, secondary = np.arange(-90.0, 91.0, 30.0), np.arange(-45.0, 46.0, 45.0)
+    one = views.reach_map(ROBOT, (0.0, 0.0, 0.0), primary, secondary, patient=PATIENT, workers=1)
+    monkeypatch.setattr(search, "PARALLEL_MIN_CELLS", 4)
+    monkeypatch.setattr(search, "CHUNK", 5)
+    two = views.reach_map(ROBOT, (0.0, 0.0, 0.0), primary, secondary, patient=PATIENT, workers=2)
+    assert np.array_equal(one.q, two.q, equal_nan=True)
+    assert np.array_equal(one.reachable, two.reachable) and np.array_equal(one.reason, two.reason)
+    np.testing.assert_allclose(one.clearance, two.clearance, rtol=0, atol=1e-12)
