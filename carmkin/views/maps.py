@@ -3,8 +3,9 @@
 :func:`reach_map` searches every (primary, secondary) cell with the one search of
 :mod:`carmkin.views.search` — the same as :func:`~carmkin.views.plan_view` with no ``q_current`` — all
 cells at once: closed-form families over the wigwag samples with their exact distance intervals, a cheap
-bounding-volume score, exact coal distances only for the candidates that decide. Angles in degrees at the
-boundary, lengths in m.
+bounding-volume score, exact coal distances only for the candidates that decide. A robot that holds the C is
+freed by its closed form (:mod:`carmkin.views.mount`), a mount without one by the QP cell by cell
+(:func:`free_mount`). Angles in degrees at the boundary, lengths in m.
 """
 
 from __future__ import annotations
@@ -30,7 +31,8 @@ class ReachMap:
     its sentence; ``directions`` (P, S, 3) the beams (table frame), ``target`` (3,) m; ``rank`` (P, S) the
     answer's position in its cell's search order (0: the first candidate; −1: unreachable;
     :data:`~carmkin.views.search.MAX_EXACT_CHECKS`: found by the polish between the samples,
-    :mod:`carmkin.views.polish`)."""
+    :mod:`carmkin.views.polish`; :data:`QP_RANK`: by the QP; a robot's cell found by its closed form: its
+    place in that search's order, :mod:`carmkin.views.mount`)."""
 
     primary_deg: np.ndarray
     secondary_deg: np.ndarray

@@ -201,9 +201,11 @@ def plan_view(system, view, patient=None, q_current=None, *, margin: float = DEF
     any ``system``: free roll and distance used for clearance (≥ ``margin``, m), then least motion from
     ``q_current`` (nq,) (default mid-range). ``patient``: a patient model or a list of
     :class:`~carmkin.robot.collision.Obstacle`. ``table_samples``: held configurations (k, nq) whose table
-    joints a motorized table may take (default: those of the reference). ``qp``: when the closed form leaves
-    the view unreachable on a motorized table, try again with its joints free (:mod:`carmkin.views.refine`;
-    :func:`reach_map` holds them)."""
+    joints a motorized table may take (default: those of the reference). A robot that holds the C (mount
+    joints) is freed by its closed form (:mod:`carmkin.views.mount`), the answer nearest ``q_current`` among
+    its sampled rolls, distances and orbital values. ``qp``: when the closed form leaves the view unreachable on
+    a motorized table or a robot, try again with every joint free (:mod:`carmkin.views.refine`;
+    :func:`reach_map` holds a table's joints, and frees a robot's by its closed form only)."""
     view = _resolve(view, patient)
     margin = real_scalar(margin, "margin", error=ViewError, low=0.0, high=1.0, unit="m")
     world = world_for(system, patient)
