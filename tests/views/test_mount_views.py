@@ -93,3 +93,18 @@ def test_worker_processes_give_the_answers_of_one(monkeypatch):
     assert np.array_equal(one.q, two.q, equal_nan=True)
     assert np.array_equal(one.reachable, two.reachable) and np.array_equal(one.reason, two.reason)
     np.testing.assert_allclose(one.clearance, two.clearance, rtol=0, atol=1e-12)
+
+
+def test_plan_view_asks_the_qp_when_the_closed_form_finds_nothing(monkeypatch):
+    """With no sample to try (the passes emptied), the closed form leaves the AP view unreachable; plan_view's
+    fallback, the QP with every joint free, reaches it (its answer held to the QP's tolerance), and with
+    ``qp=False`` the view stays unreachable with the closed form's reason."""
+    monkeypatch.setattr(mount_search, "_passes", lambda system, q_ref: [])
+    view = views.View.from_angles(0.0, 0.0, (0.0, 0.0, 0.0))
+    plain = views.plan_view(ROBOT, view, patient=PATIENT, qp=False, nearest=False)
+    assert not plain.success and plain.binding == "mount"
+    plan = views.plan_view(ROBOT, view, patient=PATIENT, nearest=False)
+    assert plan.success and plan.solver == "qp"
+    T = ROBOT.fk(plan.q)
+    assert np.linalg.norm(T[:3, 2] - view.direction) <= 2e-6
+    assert World(ROBOT, PATIENT).distances(q=plan.q).min() >= carmkin.DEFAULT_MARGIN - 1e-6
