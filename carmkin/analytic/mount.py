@@ -331,15 +331,17 @@ def branches(system, T, q_hold) -> Branches:
 @dataclass(frozen=True)
 class MountIKResult:
     """The IK of one source pose: ``solutions`` (8, nq) every branch's configuration (NaN where it does not
-    exist), ``reachable`` (8,) and ``within_limits`` (8,) per branch (see :class:`Branches`), ``chosen`` the
-    branch within limits nearest ``q_current`` (normalised by the joint spans), or None, and ``reason`` when
-    there is none."""
+    exist), ``reachable`` (8,) and ``within_limits`` (8,) per branch (see :class:`Branches`), ``clearance``
+    (8,) the exact clearance (m) of each branch within limits when a world was given (NaN otherwise),
+    ``chosen`` the branch within limits (and clear of the margin, with a world) nearest ``q_current``
+    (normalised by the joint spans), or None, and ``reason`` when there is none."""
 
     solutions: np.ndarray
     reachable: np.ndarray
     within_limits: np.ndarray
     chosen: int | None
     reason: str | None
+    clearance: np.ndarray | None = None
 
     @property
     def success(self) -> bool:
@@ -351,14 +353,17 @@ class MountIKResult:
         return None if self.chosen is None else self.solutions[self.chosen]
 
 
-def solve(system, T, q_current=None) -> MountIKResult:
+def solve(system, T, q_current=None, *, world=None, margin: float = 0.0) -> MountIKResult:
     """Every closed-form solution of the source pose ``T`` (4, 4) (``xray_source`` in the table frame) with the
     robot's six joints free and the other joints held at ``q_current`` (nq,) (default: the middle of the
-    ranges), and the one within limits nearest it. A pose out of reach is a result without a solution (its
-    ``reason`` says why), never an exception; a malformed T or q_current, a system without such a mount, are
-    typed errors naming the argument."""
+    ranges), and the one within limits nearest it. With ``world`` (a :class:`carmkin.world.World` of this
+    system, e.g. with the patient), the branches within limits are checked at once by its exact clearance and
+    the one chosen is the nearest that keeps ``margin`` (m; e.g. ``carmkin.DEFAULT_MARGIN``). A pose out of
+    reach (or every branch in contact) is a result without a solution (its ``reason`` says why), never an
+    exception; a malformed T, q_current, world or margin, a system without such a mount, are typed errors
+    naming the argument."""
     from carmkin.transforms import check_rigid_transform
-    from carmkin.validation import JOINT_VALUE_LIMIT, real_array
+    from carmkin.validation import JOINT_VALUE_LIMIT, real_array, real_scalar
 
     ik = solver_for(system)
     T = check_rigid_transform(T, "T")
@@ -367,19 +372,33 @@ def solve(system, T, q_current=None) -> MountIKResult:
     else:
         q_ref = real_array(q_current, "q_current", (system.nq,), error=InvalidConfigurationError,
                            limit=JOINT_VALUE_LIMIT, unit="m, rad")
+    margin = real_scalar(margin, "margin", error=InvalidConfigurationError, low=0.0, high=1.0, unit="m")
+    if world is not None and (not callable(getattr(world, "clearance", None))
+                              or getattr(world, "system", None) != system):
+        raise InvalidConfigurationError(f"world must be a carmkin.world.World of this system (World(system, "
+                                        f"patient)), got {type(world).__name__}")
     out = branches(system, T[None], q_ref[None])
     q, reachable, within = out.q[0], out.reachable[0], out.within_limits[0]
+    clearance, allowed = None, within
+    if world is not None:
+        clearance = np.full(BRANCHES, np.nan)
+        if within.any():
+            clearance[within] = world.clearance(q[within])
+        allowed = within & (np.nan_to_num(clearance, nan=-np.inf) >= margin)
     chosen, reason = None, None
-    if within.any():
+    if allowed.any():
         span = np.maximum(system.upper - system.lower, 1e-9)
-        cost = np.where(within, np.nansum(np.abs((q - q_ref) / span), axis=1), np.inf)
+        cost = np.where(allowed, np.nansum(np.abs((q - q_ref) / span), axis=1), np.inf)
         chosen = int(np.argmin(cost))
+    elif within.any():
+        reason = (f"contact: each of the {int(within.sum())} branch(es) within the joint ranges comes within the "
+                  f"margin ({margin * 1e3:.1f} mm; closest {np.nanmax(clearance) * 1e3:.1f} mm)")
     elif reachable.any():
         reason = (f"{int(reachable.sum())} branch(es) reach the pose, none within the mount's joint ranges "
                   f"({', '.join(j.name for j in system.mount.joints)})")
     else:
         reason = "out of reach: no branch of the robot's closed form gives the pose (the wrist centre beyond the arm)"
-    return MountIKResult(q, reachable, within, chosen, reason)
+    return MountIKResult(q, reachable, within, chosen, reason, clearance)
 
 
 __all__ = ["BRANCHES", "DEGENERATE", "RESIDUAL_TOLERANCE", "STRUCTURE_TOLERANCE", "Branches", "MountIK",

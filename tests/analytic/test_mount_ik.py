@@ -200,3 +200,40 @@ def test_systems_without_such_a_mount_are_refused_naming_why():
     with pytest.raises(UnsupportedMountError, match="not parallel"):
         mount.solve(ROBOT.replace(mount=dataclasses.replace(ROBOT.mount, joints=tuple(joints))), np.eye(4))
     assert issubclass(UnsupportedMountError, CarmkinError)
+
+
+def test_with_a_world_the_nearest_branch_clear_of_the_margin_is_chosen():
+    """Poses of random configurations with the patient on the table: the branch chosen is, of the branches within
+    limits whose every pair (coal on all of them, World.distances) keeps the margin, the nearest q_current."""
+    from carmkin.patient import ParametricPatient
+    from carmkin.world import World
+
+    world = World(ROBOT, ParametricPatient().on_table(ROBOT))
+    rng = np.random.default_rng(4)
+    span = ROBOT.upper - ROBOT.lower
+    margin, contact, chosen = carmkin.DEFAULT_MARGIN, 0, 0
+    for _ in range(25):
+        q = ROBOT.lower + rng.random(ROBOT.nq) * span
+        ref = ROBOT.lower + rng.random(ROBOT.nq) * span
+        ref[np.r_[0, 7:ROBOT.nq]] = q[np.r_[0, 7:ROBOT.nq]]
+        result = mount.solve(ROBOT, ROBOT.fk(q), q_current=ref, world=world, margin=margin)
+        clear = np.array([result.within_limits[k] and world.distances(q=result.solutions[k]).min() >= margin
+                          for k in range(8)])
+        contact += bool(result.within_limits.any() and not clear.all())
+        if not clear.any():
+            assert not result.success and result.reason
+            continue
+        cost = np.where(clear, np.nansum(np.abs((result.solutions - ref) / np.maximum(span, 1e-9)), axis=1), np.inf)
+        assert result.chosen == int(np.argmin(cost))
+        chosen += 1
+        np.testing.assert_allclose(result.clearance[result.within_limits],
+                                   [world.distances(q=s).min() for s in result.solutions[result.within_limits]],
+                                   rtol=0, atol=1e-5)
+    assert chosen >= 5 and contact >= 1  # the test saw both: a choice, and a branch the clearance ruled out
+
+
+@pytest.mark.parametrize("kwargs", [{"world": "world"}, {"world": object()}, {"margin": -0.1}, {"margin": "1"},
+                                    {"margin": np.nan}])
+def test_a_junk_world_or_margin_is_a_typed_error(kwargs):
+    with pytest.raises(InvalidConfigurationError, match=next(iter(kwargs))):
+        mount.solve(ROBOT, np.eye(4), **kwargs)
