@@ -76,8 +76,8 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="the 19 x 10 map at 10°")
     args = parser.parse_args()
-    step = 10 if args.quick else 2
-    primary, secondary = np.arange(-90, 91, step), np.arange(-45, 46, step)
+    primary, secondary = ((np.arange(-90, 91, 10), np.arange(-45, 46, 10)) if args.quick
+                          else (acceptance.PRIMARY_DEG, acceptance.SECONDARY_DEG))  # the presets' acceptance map
     repeats = 2 if args.quick else 1
     mobile, t_mobile, _ = timed_map(carmkin.load_preset("siremobile-iso-c3d"), primary, secondary, repeats)
     robot_system = carmkin.load_preset("robotic-carm")
