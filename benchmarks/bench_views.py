@@ -11,7 +11,9 @@ per-view QP loop they replace.
 3. The QP after the closed form on the motorized preset (the cells of a 10° map the held table leaves
    unreachable).
 3b. The robot-held C-arm (``robotic-carm``, issue 30): its reach map (91 × 46 at 2°; --quick: 19 × 10 at 10°),
-   every cell by the QP with the robot's joints free, against a per-view ``qp_ik.solve`` loop on sampled cells.
+   every cell by the robot's closed form (issue 37, ``carmkin.views.mount``), against a per-view
+   ``qp_ik.solve`` loop on sampled cells (``benchmarks/bench_robot_reach.py`` sets it beside the mobile
+   C-arm's map on the same grid).
 4. The polish between the samples (issue 31): reach_map with and without it, alternated in the same run.
 5. No slowdown from the one collision world (issue 27): ``reach_map`` (one process) and ``plan_view`` timed in
    fresh interpreters on today's code and on the code before the world (:data:`BASELINE_REV`), same grid, same
@@ -197,8 +199,8 @@ def qp_after_closed_form(target) -> None:
 
 
 def robot_held_map(target, step: int) -> None:
-    """The reach map of the robot-held C-arm (every cell by the QP, the closed form holding the robot) against a
-    per-view ``qp_ik.solve`` loop (an AxisTarget at the isocentre distance) on sampled cells, scaled."""
+    """The reach map of the robot-held C-arm (every cell by the robot's closed form, :mod:`carmkin.views.mount`)
+    against a per-view ``qp_ik.solve`` loop (an AxisTarget at the isocentre distance) on sampled cells, scaled."""
     system = carmkin.load_preset("robotic-carm")
     patient = ParametricPatient.on_table(system)
     primary, secondary = np.arange(-90, 91, step), np.arange(-45, 46, step)
@@ -217,7 +219,7 @@ def robot_held_map(target, step: int) -> None:
     print(f"robotic-carm map {len(primary)} x {len(secondary)}: {int(m.reachable.sum())} of {m.reachable.size} cells "
           f"reachable; per-view qp_ik.solve loop solved {solved} of {len(sample)} sampled cells")
     print(row("robotic-carm: per-view qp_ik.solve loop (scaled to the map)", t_qp, unit="s"))
-    print(row("robotic-carm: reach_map (QP cells, default workers)", t_map, t_qp, unit="s"))
+    print(row("robotic-carm: reach_map (closed form, default workers)", t_map, t_qp, unit="s"))
 
 
 if __name__ == "__main__":

@@ -73,6 +73,12 @@ class UnsupportedSystemError(AnalyticIKError):
     """The closed form covers the paper's 6-DOF chain; the system has extra (motorized) table joints."""
 
 
+class UnsupportedMountError(UnsupportedSystemError):
+    """The mount's closed form (:mod:`carmkin.analytic.mount`) needs six revolute joints whose last three axes
+    meet in one point and whose second and third are parallel (a KUKA KR 210 class robot); the system has no
+    mount or another one (the QP, :func:`carmkin.qp_ik.solve`, solves it)."""
+
+
 class SingularPoseError(AnalyticIKError):
     """A singular pose that damped least squares could not solve to :data:`NUMERICAL_TOLERANCE`.
 

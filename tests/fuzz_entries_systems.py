@@ -79,6 +79,30 @@ def analytic_ik(rng):
     return maybe_junk(rng, Case(carmkin.analytic_ik.solve, (PRESET, T), check=check), ("system", "T"))
 
 
+ROBOT = carmkin.load_preset("robotic-carm")
+
+
+def mount_ik(rng):
+    """The robot's closed form: a pose of a configuration in range (at a limit, at the wrist singularity) has its
+    configuration among the branches within limits, every branch reaches it; a pose moved far away has none."""
+    from carmkin.analytic import mount
+
+    q = _q(rng, ROBOT)
+    if rng.random() < 0.2:
+        q[ROBOT.joint_names.index("robot_a5")] = 0.0  # axes 4 and 6 in line
+    T = ROBOT.fk(q)
+    far = rng.random() < 0.2
+    if far:
+        T[:3, 3] += rng.normal(size=3) / np.sqrt(3) * 20.0
+
+    def check(result):
+        reached = [s for s, ok in zip(result.solutions, result.reachable) if ok]
+        if far:
+            return not reached and not result.success and bool(result.reason)
+        return result.success and bool(reached) and all(_reached(ROBOT, s, T, 1e-9) for s in reached)
+    return maybe_junk(rng, Case(mount.solve, (ROBOT, T, q), check=check), ("system", "T", "q_current?"))
+
+
 def qp_ik(rng):
     system = _system(rng)
     T = system.fk(_q(rng, system))
@@ -253,7 +277,8 @@ def calibrate_table(rng):
 
 
 ENTRIES = {
-    "model.CArmSystem.fk": (fk, 3), "analytic_ik.solve": (analytic_ik, 2), "qp_ik.solve": (qp_ik, 0.3),
+    "model.CArmSystem.fk": (fk, 3), "analytic_ik.solve": (analytic_ik, 2),
+    "analytic.mount.solve": (mount_ik, 2), "qp_ik.solve": (qp_ik, 0.3),
     "singularity.joint_index": (joint_index, 1), "singularity.singular_curves": (singular_curves, 1),
     "singularity.measures": (measures, 1), "singularity.det_jacobian": (det_jacobian, 1),
     "singularity.grid_axis": (grid_axis, 1), "presets.load_preset": (presets, 0.3),

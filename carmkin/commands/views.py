@@ -186,7 +186,7 @@ def _print_plan(system, plan, position) -> None:
         if plan.clearance_to:
             print("  clearance to " + ", ".join(f"{k} {v * MM:.1f} mm" for k, v in plan.clearance_to.items()))
         if plan.solver == "qp":
-            print("  found by the QP with the motorized table's and the mount's joints free (the closed form holds them)")
+            print("  found by the QP with every joint free (the closed forms left the view unreachable)")
         for m in plan.moves:
             print(f"  move {m.joint}: {'clear' if m.clear else 'blocked'}" + (f" ({m.reason})" if m.reason else ""))
         if plan.moves and plan.duration is not None:

@@ -137,8 +137,31 @@ class MountGeometry:
         return tuple(joint.moved(self.base_pose) for joint in self.joints)
 
 
+def motions(joint: MountJoint, values) -> np.ndarray:
+    """``e^{η q}`` (N, 4, 4) of one joint for values (N,) (m or rad): :meth:`MountJoint.motion` vectorised
+    (Rodrigues' formula; the tests hold the two together)."""
+    values = np.asarray(values, dtype=float)
+    u, c = np.asarray(joint.axis), np.asarray(joint.point)
+    out = np.zeros(values.shape + (4, 4))
+    out[..., 3, 3] = 1.0
+    if joint.prismatic:
+        out[..., [0, 1, 2], [0, 1, 2]] = 1.0
+        out[..., :3, 3] = values[..., None] * u
+        return out
+    K = np.array([[0.0, -u[2], u[1]], [u[2], 0.0, -u[0]], [-u[1], u[0], 0.0]])
+    s, v = np.sin(values)[..., None, None], (1.0 - np.cos(values))[..., None, None]
+    R = np.eye(3) + s * K + v * (K @ K)
+    out[..., :3, :3] = R
+    out[..., :3, 3] = c - R @ c
+    return out
+
+
 def chain(joints: tuple[MountJoint, ...], values) -> np.ndarray:
-    """``e^{η1 q1} ··· e^{ηn qn}`` (4, 4) for joints from the floor up and their values."""
+    """``e^{η1 q1} ··· e^{ηn qn}`` for joints from the floor up and their values: (4, 4) for values (n,),
+    (N, 4, 4) for (N, n) (vectorised)."""
+    values = np.asarray(values, dtype=float)
+    if values.ndim == 2:
+        return partial_chains(joints, values)[:, -1] if len(joints) else np.broadcast_to(np.eye(4), (len(values), 4, 4)).copy()
     out = np.eye(4)
     for joint, value in zip(joints, values):
         out = out @ joint.motion(float(value))
@@ -146,7 +169,16 @@ def chain(joints: tuple[MountJoint, ...], values) -> np.ndarray:
 
 
 def partial_chains(joints: tuple[MountJoint, ...], values) -> np.ndarray:
-    """``G_i = e^{η1 q1} ··· e^{ηi qi}`` for i = 1..n, (n, 4, 4): the motion of the body after joint i."""
+    """``G_i = e^{η1 q1} ··· e^{ηi qi}`` for i = 1..n, (n, 4, 4) for values (n,), (N, n, 4, 4) for (N, n): the
+    motion of the body after joint i."""
+    values = np.asarray(values, dtype=float)
+    if values.ndim == 2:
+        out = np.empty((len(values), len(joints), 4, 4))
+        G = np.broadcast_to(np.eye(4), (len(values), 4, 4))
+        for i, joint in enumerate(joints):
+            G = G @ motions(joint, values[:, i])
+            out[:, i] = G
+        return out
     out = np.empty((len(joints), 4, 4))
     G = np.eye(4)
     for i, (joint, value) in enumerate(zip(joints, values)):
@@ -205,5 +237,5 @@ def _vec(v) -> str:
     return ",".join(repr(float(x)) for x in v)
 
 
-__all__ = ["MountJoint", "MountGeometry", "chain", "partial_chains", "body_boxes", "xacro_spec", "MOUNT_LINK",
+__all__ = ["MountJoint", "MountGeometry", "motions", "chain", "partial_chains", "body_boxes", "xacro_spec", "MOUNT_LINK",
            "AXIS_TOLERANCE"]

@@ -143,10 +143,7 @@ class CArmSystem:
         of the C-arm base in the rest table frame 0 (see :mod:`carmkin.model.mount_joints`)."""
         from .mount_joints import chain
 
-        q_mount = np.asarray(q_mount, dtype=float)
-        if q_mount.ndim == 1:
-            return chain(self.mount.twists, q_mount)
-        return np.array([chain(self.mount.twists, v) for v in q_mount]).reshape(len(q_mount), 4, 4)
+        return chain(self.mount.twists, np.asarray(q_mount, dtype=float))
 
     def base_motion(self, q) -> np.ndarray:
         """``Tz(d0) · E(q_table) · G(q_mount)`` (4, 4) or (N, 4, 4) for q (nq,) or (N, nq): what carries the
@@ -168,7 +165,7 @@ class CArmSystem:
         flat = q.reshape(-1, self.nq)
         reference = self.base_motion(np.concatenate((flat[:, :1 + len(self.table.joints)],
                                                      np.zeros((len(flat), len(self.mount.joints))), flat[:, -5:]), axis=1))
-        out = np.array([R @ partial_chains(self.mount.twists, v) for R, v in zip(reference, self.mount_part(flat))])
+        out = reference[:, None] @ partial_chains(self.mount.twists, self.mount_part(flat))
         return out.reshape(q.shape[:-1] + (len(self.mount.joints), 4, 4))
 
     def table_motion(self, q_table: np.ndarray) -> np.ndarray:
@@ -178,6 +175,8 @@ class CArmSystem:
         """
         from .table_joints import inverse_chain
 
+        if not self.table.joints and q_table.ndim == 2:  # no table joint: the identity for every configuration
+            return np.broadcast_to(np.eye(4), (len(q_table), 4, 4)).copy()
         if q_table.ndim == 1:
             return inverse_chain(self.table.joints, q_table)
         return np.array([inverse_chain(self.table.joints, v) for v in q_table]).reshape(len(q_table), 4, 4)

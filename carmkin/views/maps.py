@@ -3,8 +3,9 @@
 :func:`reach_map` searches every (primary, secondary) cell with the one search of
 :mod:`carmkin.views.search` — the same as :func:`~carmkin.views.plan_view` with no ``q_current`` — all
 cells at once: closed-form families over the wigwag samples with their exact distance intervals, a cheap
-bounding-volume score, exact coal distances only for the candidates that decide. Angles in degrees at the
-boundary, lengths in m.
+bounding-volume score, exact coal distances only for the candidates that decide. A robot that holds the C is
+freed by its closed form (:mod:`carmkin.views.mount`), a mount without one by the QP cell by cell
+(:func:`free_mount`). Angles in degrees at the boundary, lengths in m.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ import numpy as np
 from carmkin.errors import ViewError
 from carmkin.validation import integer, real_array, real_scalar
 
-from . import refine, search
+from . import mount, refine, search
 from .plan import DEFAULT_MARGIN, _table_samples, beam_directions, reference, world_for
 from .view import _patient_frame, _point
 
@@ -30,7 +31,8 @@ class ReachMap:
     its sentence; ``directions`` (P, S, 3) the beams (table frame), ``target`` (3,) m; ``rank`` (P, S) the
     answer's position in its cell's search order (0: the first candidate; −1: unreachable;
     :data:`~carmkin.views.search.MAX_EXACT_CHECKS`: found by the polish between the samples,
-    :mod:`carmkin.views.polish`)."""
+    :mod:`carmkin.views.polish`; :data:`QP_RANK`: by the QP; a robot's cell found by its closed form: its
+    place in that search's order, :mod:`carmkin.views.mount`)."""
 
     primary_deg: np.ndarray
     secondary_deg: np.ndarray
@@ -81,9 +83,10 @@ def reach_map(system, target, primary_deg=np.arange(-90, 91), secondary_deg=np.a
     ctx = search.make_context(system, world, margin, reference(system, None), _table_samples(system, table_samples))
     n = len(directions)
     ranges = np.tile([0.0, system.carm.source_to_detector], (n, 1))
-    out = search.solve_cells(ctx, np.tile(target, (n, 1)), directions, ranges, workers=_workers(workers))
-    if system.mount.joints:  # the closed form holds a mount's joints (a robot's): the QP frees them, cell by cell
-        out = _with_qp(ctx, target, directions, ranges, out, _workers(workers))
+    targets = np.tile(target, (n, 1))
+    out = search.solve_cells(ctx, targets, directions, ranges, workers=_workers(workers))
+    if system.mount.joints:
+        out = free_mount(ctx, targets, directions, ranges, out, _workers(workers))
     shape = (len(p), len(s))
     return ReachMap(p, s, target, directions.reshape(shape + (3,)), out.reachable.reshape(shape),
                     out.q.reshape(shape + (system.nq,)), out.clearance.reshape(shape), out.distance.reshape(shape),
@@ -132,6 +135,18 @@ def _with_qp(ctx, target, directions, ranges, out, workers: int):
             fields["clearance"][k], fields["distance"][k] = clearance, distance
             fields["reason"][k], fields["binding"][k], fields["rank"][k] = None, "", QP_RANK
     return type(out)(**fields)
+
+
+def free_mount(ctx, targets, directions, ranges, out, workers: int):
+    """``out`` (the search with a mount's joints held, a robot's) with the cells it left unreachable freed: by the
+    mount's closed form (:mod:`carmkin.views.mount`) where the robot has one, else by the QP cell by cell
+    (:func:`_with_qp`; the targets are one point). The closed form's sampled search is the map's answer for
+    such a robot: it reached every cell the QP reached on the benchmark maps (benchmarks/bench_robot_reach.py)
+    at a fraction of its cost; :func:`~carmkin.views.plan_view` still asks the QP for a view it leaves
+    unreachable."""
+    if mount.applies(ctx.system):
+        return mount.with_mount(ctx, out, targets, directions, ranges, workers=workers)
+    return _with_qp(ctx, targets[0], directions, ranges, out, workers)
 
 
 def default_workers() -> int:

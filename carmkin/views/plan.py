@@ -34,7 +34,7 @@ from carmkin.validation import real_array, real_scalar
 from carmkin.world import DEFAULT_MARGIN, DEFAULT_PATH_CLEARANCE, Move, Obstacle, World  # noqa: F401 (Move: views.Move)
 from carmkin.world.obstacles import as_obstacles
 
-from . import refine, search
+from . import mount, refine, search
 from .view import View, _patient_frame
 
 #: Clearance (m) kept along the swept moves (below the margin, so the goal's neighbourhood is reachable).
@@ -205,11 +205,13 @@ def plan_view(system, view, patient=None, q_current=None, *, margin: float = DEF
     any ``system``: free roll and distance used for clearance (≥ ``margin``, m), then least motion from
     ``q_current`` (nq,) (default mid-range). ``patient``: a patient model or a list of
     :class:`~carmkin.robot.collision.Obstacle`. ``table_samples``: held configurations (k, nq) whose table
-    joints a motorized table may take (default: those of the reference). ``qp``: when the closed form leaves
-    the view unreachable on a motorized table, try again with its joints free (:mod:`carmkin.views.refine`;
-    :func:`reach_map` holds them). ``motion_plan``: with ``q_current``, also plan the certified motion to the view
-    (:func:`carmkin.motion.plan_motion`, keeping :data:`PATH_CLEARANCE`); False when ``q_current`` is only the
-    reference of least motion."""
+    joints a motorized table may take (default: those of the reference). A robot that holds the C (mount
+    joints) is freed by its closed form (:mod:`carmkin.views.mount`), the answer nearest ``q_current`` among
+    its sampled rolls, distances and orbital values. ``qp``: when the closed form leaves the view unreachable on
+    a motorized table or a robot, try again with every joint free (:mod:`carmkin.views.refine`;
+    :func:`reach_map` holds a table's joints, and frees a robot's by its closed form only). ``motion_plan``: with
+    ``q_current``, also plan the certified motion to the view (:func:`carmkin.motion.plan_motion`, keeping
+    :data:`PATH_CLEARANCE`); False when ``q_current`` is only the reference of least motion."""
     view = _resolve(view, patient)
     margin = real_scalar(margin, "margin", error=ViewError, low=0.0, high=1.0, unit="m")
     world = world_for(system, patient)
@@ -242,6 +244,8 @@ def _plan_cells(ctx, views) -> list[ViewPlan]:
     ranges = np.vstack([distance_range(ctx.system, v) for v in views])
     x_axes = np.array([v.x_axis if v.x_axis is not None else (np.nan,) * 3 for v in views], dtype=float)
     out = search.solve_cells(ctx, targets, directions, ranges, x_axes)
+    if ctx.system.mount.joints:  # the search holds a robot's joints: its closed form frees them
+        out = mount.with_mount(ctx, out, targets, directions, ranges, x_axes)
     return [ViewPlan(v, bool(out.reachable[i]), out.q[i], float(out.clearance[i]), float(out.distance[i]),
                      out.reason[i], str(out.binding[i])) for i, v in enumerate(views)]
 

@@ -39,10 +39,10 @@ def plan_perpendicular(system, a, b, patient=None, q_current=None, *, prefer=Non
     directions = np.array([v.direction for v in family])
     ranges = np.vstack([distance_range(system, v) for v in family])
     out = search.solve_cells(ctx, targets, directions, ranges)
-    if system.mount.joints:  # the closed form holds a mount's joints (a robot's): the QP frees them, as reach_map
-        from .maps import _with_qp, _workers
+    if system.mount.joints:  # the search holds a mount's joints (a robot's): freed as reach_map frees them
+        from .maps import _workers, free_mount
 
-        out = _with_qp(ctx, targets[0], directions, ranges, out, _workers(None))
+        out = free_mount(ctx, targets, directions, ranges, out, _workers(None))
     if preferred is not None:
         order = np.argsort(-(directions @ preferred), kind="stable")  # nearest the preferred beam first
     else:

@@ -51,14 +51,18 @@ def link_poses(system, Q) -> tuple[np.ndarray, np.ndarray]:
     from carmkin.model import kinematics
 
     if system.mount.joints:
+        from carmkin.model.mount_joints import partial_chains
+
         Q = kinematics.check_configuration(Q, system.nq)
         q6 = system.split(Q)[0].copy()
         q6[:, 0] = 0.0
-        motion = system.base_motion(Q)
         rest = Q.copy()
         rest[:, 1 + len(system.table.joints):-5] = 0.0
-        frames = np.concatenate((motion[:, None] @ kinematics.dh_frames(system.dh_table, q6),
-                                 system.base_motion(rest)[:, None], system.mount_frames(Q)), axis=1)
+        held = system.base_motion(rest)  # Tz(d0) E(q_table): the mount at rest
+        bodies = held[:, None] @ partial_chains(system.mount.twists, system.mount_part(Q))  # = system.mount_frames(Q)
+        motion = bodies[:, -1]  # = system.base_motion(Q), the chain computed once
+        frames = np.concatenate((motion[:, None] @ kinematics.dh_frames(system.dh_table, q6), held[:, None], bodies),
+                                axis=1)
         return frames, motion @ system.closed_form.poses(q6)
     if not system.table.joints:
         return system.dh_frames(Q), system.fk(Q, check_units=False)

@@ -256,3 +256,19 @@ def test_the_pedestal_is_fixed_and_the_robot_bodies_are_checked_against_table_fl
     model, collision, _ = ROBOT.pinocchio()
     floor = next(g for g in collision.geometryObjects if g.name == "floor_0")
     assert model.names[floor.parentJoint] == "table_translation"
+
+
+@settings(max_examples=25)
+@given(mounts(), st.data())
+def test_the_batch_mount_motion_is_the_scalar_one_row_by_row(mount, data):
+    """``mount_motion`` and ``mount_frames`` of (N, nq) configurations (vectorised Rodrigues) against the scalar
+    product of :meth:`MountJoint.motion` per row."""
+    system = PRESET.replace(mount=mount)
+    Q = np.array([data.draw(configurations(system)) for _ in range(4)])
+    batch = system.mount_motion(system.mount_part(Q))
+    for k, q in enumerate(Q):
+        expected = np.eye(4)
+        for joint, value in zip(mount.twists, system.mount_part(q)):
+            expected = expected @ joint.motion(float(value))
+        np.testing.assert_allclose(batch[k], expected, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(system.mount_frames(Q)[k], system.mount_frames(q), rtol=0, atol=1e-12)

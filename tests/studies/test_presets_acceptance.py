@@ -28,7 +28,7 @@ ANGIOGRAPHY = [name for name in PRESETS if acceptance.family(carmkin.load_preset
 HEAD_END = [name for name in ANGIOGRAPHY if acceptance.cbct_joint(carmkin.load_preset(name)) == "angular"]
 #: A planned beam passes through its target and along its direction to this (m, rad): closed-form round-off.
 BEAM_TOLERANCE = 1e-9
-#: The same for a plan the QP solved (a robot-held C-arm's: the closed form holds the mount's joints): twice the
+#: The same for a plan the QP solved (what a closed form left unreachable, every joint free): twice the
 #: QP's stopping tolerances (m and rad), which bound its task errors, not this distance (measured: 1.03e-6 m).
 QP_BEAM_TOLERANCE = 2 * max(carmkin.qp_ik.QPIKOptions().position_tolerance, carmkin.qp_ik.QPIKOptions().angle_tolerance)
 #: A frame's exact clearance may fall below the sweep's certified bound by at most coal's accuracy (m).

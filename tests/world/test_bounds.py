@@ -80,6 +80,23 @@ def test_motorized_preset():
     check_scene(carmkin.load_preset("siremobile-iso-c3d-motorized-table"), 3, n=100, property_based=False)
 
 
+def test_robot_held_preset():
+    """The robot's bodies (mount frames computed once per configuration, :func:`carmkin.world.bounds.link_poses`)
+    against coal on every pair."""
+    check_scene(carmkin.load_preset("robotic-carm"), 5, n=60, property_based=False)
+
+
+def test_link_poses_of_a_robot_are_the_systems_frames():
+    from carmkin.world.bounds import link_poses
+
+    system = carmkin.load_preset("robotic-carm")
+    qs = random_configurations(np.random.default_rng(2), system, 20, beyond=0.0)
+    frames, sources = link_poses(system, qs)
+    np.testing.assert_allclose(frames[:, 7:], system.mount_frames(qs), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(frames[:, :6], system.dh_frames(qs), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(sources, system.fk(qs), rtol=0, atol=1e-12)
+
+
 def test_bad_configurations_are_refused():
     system = carmkin.load_preset("siremobile-iso-c3d")
     world = World(system)
