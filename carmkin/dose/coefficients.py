@@ -79,18 +79,23 @@ def check_kvp(kvp, name: str = "kvp") -> float:
 def backscatter(kvp, hvl_mm_al, field_side_cm) -> np.ndarray:
     """Backscatter factor (dimensionless) at tube voltage ``kvp`` (kV), half-value layer ``hvl_mm_al`` (mm Al)
     and square-equivalent field sides ``field_side_cm`` (cm, any shape, at the skin)."""
-    from scipy.interpolate import CubicSpline
-
     kvp = check_kvp(kvp)
     hvl = real_scalar(hvl_mm_al, "hvl_mm_al", error=DoseError, low=0.0, high=20.0, unit="mm Al")
     side = real_array(field_side_cm, "field_side_cm", error=DoseError, unit="cm")
     if side.size and (side.min() < FIELD_SIDE_RANGE_CM[0] or side.max() > FIELD_SIDE_RANGE_CM[1]):
         raise DoseError(f"field_side_cm must be within [{FIELD_SIDE_RANGE_CM[0]:g}, {FIELD_SIDE_RANGE_CM[1]:g}] cm "
                         f"(the backscatter fits cover 5-35 cm), got {side.min():.3g} to {side.max():.3g} cm")
+    return _backscatter_spline(kvp, hvl)(side)
+
+
+@cache
+def _backscatter_spline(kvp: float, hvl: float):
+    from scipy.interpolate import CubicSpline
+
     c = BACKSCATTER_COEFFICIENTS
     powers = np.array([1.0, kvp, kvp * kvp])
     at_sides = powers @ c[0:3] + (powers @ c[3:6]) * hvl + (powers @ c[6:9]) * hvl * hvl
-    return CubicSpline(BACKSCATTER_FIELD_SIDES_CM, at_sides)(side)
+    return CubicSpline(BACKSCATTER_FIELD_SIDES_CM, at_sides)
 
 
 def _nearest(values, target: float) -> float:
@@ -103,8 +108,12 @@ def medium_factor(kvp, hvl_mm_al, field_side_cm) -> float:
     kvp = check_kvp(kvp)
     hvl = real_scalar(hvl_mm_al, "hvl_mm_al", error=DoseError, low=0.0, high=20.0, unit="mm Al")
     side = real_scalar(field_side_cm, "field_side_cm", error=DoseError, low=0.0, unit="cm")
+    return _medium(kvp, hvl, _nearest(BACKSCATTER_FIELD_SIDES_CM, side))
+
+
+@cache
+def _medium(kvp: float, hvl: float, fsl: float) -> float:
     rows = _rows("correction_medium_and_backscatter.csv")
-    fsl = _nearest(BACKSCATTER_FIELD_SIDES_CM, side)
     rows = [r for r in rows if float(r["field_side_length_cm"]) == fsl]
     k = _nearest({float(r["kvp_kv"]) for r in rows}, kvp)
     rows = [r for r in rows if float(r["kvp_kv"]) == k]
@@ -119,10 +128,15 @@ def half_value_layer(kvp, cu_mm=0.0, al_mm=0.0) -> float:
     kvp = check_kvp(kvp)
     cu = real_scalar(cu_mm, "filter Cu", error=DoseError, low=0.0, unit="mm")
     al = real_scalar(al_mm, "filter Al", error=DoseError, low=0.0, unit="mm")
+    return _hvl(round(kvp), cu, round(al))
+
+
+@cache
+def _hvl(kvp: int, cu: float, al: int) -> float:
     rows = _rows("hvl_inherent_3.1mmAl.csv")
     for r in rows:
-        if (round(float(r["kvp_kv"])) == round(kvp) and float(r["filtration_added_mmcu"]) == cu
-                and round(float(r["filtration_added_mmal"])) == round(al)):
+        if (round(float(r["kvp_kv"])) == kvp and float(r["filtration_added_mmcu"]) == cu
+                and round(float(r["filtration_added_mmal"])) == al):
             return float(r["hvl_mmal"])
     cus = sorted({float(r["filtration_added_mmcu"]) for r in rows})
     als = sorted({round(float(r["filtration_added_mmal"])) for r in rows})

@@ -96,13 +96,12 @@ def _hvl(event: Event) -> float:
     return coefficients.half_value_layer(event.kvp, event.filter["Cu"], event.filter["Al"])
 
 
-def event_dose(system, event: Event, skin: Skin) -> EventDose:
-    """The dose (Gy) one event gives the cells its beam enters."""
+def event_dose(system, event: Event, skin: Skin, columns: np.ndarray | None = None) -> EventDose:
+    """The dose (Gy) one event gives the cells its beam enters (``columns``: ``skin.points.T``, contiguous)."""
     b: Beam = beam(system, event)
-    inside = b.inside(skin.points)
-    if not skin.two_sided:
-        inside &= np.einsum("ij,ij->i", skin.normals, skin.points - b.source) < 0.0
-    hit = np.flatnonzero(inside)
+    hit = np.flatnonzero(b.inside(skin.points) if columns is None else b.inside_columns(columns))
+    if not skin.two_sided:  # entrance cells: facing the source
+        hit = hit[np.einsum("ij,ij->i", skin.normals[hit], skin.points[hit] - b.source) < 0.0]
     hvl = _hvl(event)
     if not len(hit):
         empty = np.zeros(0)
@@ -126,7 +125,8 @@ def event_dose(system, event: Event, skin: Skin) -> EventDose:
 
 def skin_dose(system, events, patient, *, spacing: float = DEFAULT_SPACING) -> DoseMap:
     """The cumulative entrance skin dose of ``events`` (a sequence of :class:`Event`) on ``system`` for
-    ``patient`` (a :class:`carmkin.patient.ParametricPatient`, sampled at ``spacing`` m, or skin cells from
+    ``patient`` (a :class:`carmkin.patient.ParametricPatient` resting on the system's table top, else
+    :class:`~carmkin.errors.PatientModelError`, sampled at ``spacing`` m; or skin cells from
     :func:`carmkin.dose.skin.plane` / :func:`~carmkin.dose.skin.cylinder`)."""
     from carmkin.model.system import require_system
 
@@ -139,12 +139,17 @@ def skin_dose(system, events, patient, *, spacing: float = DEFAULT_SPACING) -> D
     for i, e in enumerate(events):
         if not isinstance(e, Event):
             raise DoseError(f"events[{i}] must be a carmkin.dose.Event, got {type(e).__name__}")
+    from carmkin.patient import ParametricPatient
+
+    if isinstance(patient, ParametricPatient):
+        patient.check_placement(system, "patient")  # it must rest on this system's table top
     skin = skin_of(patient, spacing)
     dose = np.zeros(len(skin.points))
     overlap = np.zeros(len(skin.points), dtype=int)
     parts = []
+    columns = np.ascontiguousarray(skin.points.T)
     for e in events:
-        part = event_dose(system, e, skin)
+        part = event_dose(system, e, skin, columns)
         dose[part.cells] += part.dose_gy
         overlap[part.cells] += 1
         parts.append(part)

@@ -14,7 +14,7 @@ import carmkin
 from carmkin import dose
 from carmkin.dose import coefficients
 from carmkin.dose.compute import crosses_box
-from carmkin.errors import CarmkinError, DoseError
+from carmkin.errors import CarmkinError, DoseError, PatientModelError
 from carmkin.patient import ParametricPatient
 
 SYSTEM = carmkin.load_preset("angio-floor")
@@ -171,6 +171,8 @@ def test_bad_calls_are_refused():
         dose.skin_dose(SYSTEM, [e], "patient")
     with pytest.raises(DoseError, match="joints"):
         dose.skin_dose(SYSTEM, [dose.Event(np.zeros(6), 80.0, 0.01, (100.0, 100.0), hvl_mm_al=4.0)], flat(0.0))
+    with pytest.raises(PatientModelError, match="patient: the patient floats"):
+        dose.skin_dose(SYSTEM, [e], ParametricPatient())  # its back at the isocentre, above the table top
     with pytest.raises(DoseError, match="spacing"):
         dose.skin_dose(SYSTEM, [e], ParametricPatient.on_table(SYSTEM), spacing=0.0)
     with pytest.raises(DoseError, match=r"not in the HVL table"):
