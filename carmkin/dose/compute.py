@@ -57,6 +57,14 @@ class DoseMap:
     psd_point: np.ndarray
     events: tuple
 
+    def shared_cells(self) -> np.ndarray:
+        """(E, E) int: the number of skin cells the entrance fields of events i and j both cover (the diagonal:
+        each event's own); times the cell area, the overlap of two fields on the skin."""
+        hits = np.zeros((len(self.events), len(self.cells)), dtype=np.int64)
+        for i, part in enumerate(self.events):
+            hits[i, part.cells] = 1
+        return hits @ hits.T
+
     def summary(self) -> dict:
         """Plain numbers (mm, Gy) for a report."""
         return {"psd_gy": self.psd_gy, "psd_point_mm": [round(float(v) * 1e3, 3) for v in self.psd_point],

@@ -105,6 +105,15 @@ def test_overlap_counts_the_entrance_fields_and_the_map_sums_them():
     assert three.overlap.max() == 3 and np.array_equal(three.overlap > 0, one.overlap > 0)
     assert np.allclose(three.dose_gy, 3 * one.dose_gy, rtol=1e-12)
     assert three.psd_gy == pytest.approx(3 * one.psd_gy, rel=1e-12)
+    # a field moved half its width along the table shares half its cells with the first (hand count on the grid)
+    q = np.zeros(SYSTEM.nq)
+    q[SYSTEM.joint_names.index("table_translation")] = 0.05  # the C-arm 50 mm along the table (Z0)
+    moved = ap_event(10.0, 0.785, q=q)
+    shared = dose.skin_dose(SYSTEM, [e, moved], skin).shared_cells()
+    n = len(one.events[0].cells)
+    side = int(round(np.sqrt(n)))
+    assert side * side == n and shared[0, 0] == shared[1, 1] == n
+    assert shared[0, 1] == shared[1, 0] == side * (side - 5)  # 5 rows of 10 mm leave the field, 5 enter
 
 
 def test_the_field_at_the_skin_is_the_detector_field_scaled_by_distance():
