@@ -343,3 +343,12 @@ class DatasetError(CarmkinError):
 class BiplaneError(CarmkinError):
     """A biplane is ill-defined: its planes do not share one table or one isocentre, they intersect at rest, a
     biplane joint vector has the wrong length, or a biplane preset names a plane or key that is not there."""
+
+
+# --- carmkin.dose --------------------------------------------------------------------------------
+
+
+class DoseError(CarmkinError):
+    """A skin-dose request is ill-defined: an irradiation event (kerma, kVp, filter, field) outside what the
+    tables cover, a patient the dose cannot be computed on, or a dose report (RDSR) whose event lacks the
+    geometry the map needs (named, never dropped)."""

@@ -17,6 +17,7 @@ from carmkin.errors import InvalidParameterError, MissingExtraError
 EXTRAS = {
     "reposition": "OpenCV (cv2)",
     "dicom": "pydicom",
+    "dose": "pydicom (skin dose from a dose report, RDSR)",
     "drr": "torch, nanodrr and nibabel",
     "cbct": "itk-rtk (itk with RTK's CPU filters)",
     "ct": "nibabel and scikit-image (a patient body or a vessel centreline from a CT)",

@@ -252,7 +252,21 @@ def sample_some_poses(rng):
     return maybe_junk(rng, case, ("system", "prior", "n", "seed"))
 
 
+def dose_event(rng):
+    from carmkin.dose import Event
+
+    q = rng.normal(size=int(rng.integers(1, 12)))
+    kvp, kerma = float(rng.uniform(50.0, 150.0)), float(rng.choice([0.0, 1e-6, 1e-3, 1.0]))
+    field_mm = tuple(float(v) for v in rng.uniform(1.0, 500.0, size=2))
+
+    def check(e):
+        return (e.q == tuple(q.tolist()) and e.kvp == kvp and e.k_irp_gy == kerma and e.field_mm == field_mm
+                and e.filter == {"Cu": 0.0, "Al": 0.0})
+    return maybe_junk(rng, Case(Event, (q, kvp, kerma, field_mm), check=check), ("q", "kvp", "k_irp_gy", "field_mm"))
+
+
 ENTRIES = {
+    "dose.Event": (dose_event, 1),
     "views.View.from_angles": (view_from_angles, 1), "views.View.from_pose": (view_from_pose, 1),
     "views.plan_view": (plan_a_view, 0.2), "datasets.sample_poses": (sample_some_poses, 0.2),
     "imaging.homography_between": (homography_between, 2), "imaging.dehomogenize": (dehomogenize, 1),

@@ -39,7 +39,7 @@ LAYERS = (
     PLANNERS,
     # carmkin.biplane runs the view planner for each of its two planes: a study of the planner, not a planner
     ("carmkin.studies", "carmkin.reproduce", "carmkin.datasets", "carmkin.calibration", "carmkin.viz",
-     "carmkin.biplane"),
+     "carmkin.biplane", "carmkin.dose"),
     ("carmkin.commands", "carmkin.cli"),
 )
 
