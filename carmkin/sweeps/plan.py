@@ -102,7 +102,10 @@ class Sweep:
     ``q_start`` to the first frame (unknown, with the reason, without ``q_start`` or joint speeds; not
     checked for collision); ``timing`` (:class:`~carmkin.model.motion.FollowCheck`): whether the joints follow
     the arc at the asked acquisition time, the fastest they follow, and the sweep's duration with the run-up
-    and stop (None when a frame has no joints in range).
+    and stop (None when a frame has no joints in range); ``approach_motion``: with ``q_start`` and a sweep that
+    fits, the certified motion from ``q_start`` to the first frame (a :class:`carmkin.motion.Trajectory`, keeping
+    half the margin as :func:`carmkin.views.plan_view`'s moves do; the arc itself is certified frame pair by frame
+    pair: the virtual trial run), or None.
     """
 
     system: object
@@ -128,6 +131,7 @@ class Sweep:
     obstacles: tuple = field(default=())
     approach: motion.Duration | None = None
     timing: motion.FollowCheck | None = None
+    approach_motion: object = None
 
     @property
     def success(self) -> bool:
@@ -369,10 +373,27 @@ def plan_sweep(system, target, arc_deg: float = 190.0, n_views: int = 100, patie
     P = K @ np.concatenate((R_t, -R_t @ poses[:, :3, 3:4]), axis=2)
     # The swept minimum of the whole arc: defined only where every frame has joints in range (else NaN).
     bound = bound if np.all(ok) and np.isfinite(bound) else math.nan
+    approach_motion = None
+    if q_start is not None and first is None and system.motion is not None:
+        approach_motion = _approach_motion(system, world, q_start, q[0], margin)
     return Sweep(system, q, phi, poses, P, target, float(distance), bool(compensate), w, q_plain, drift,
                  float(bound), float(sampled), samples, float(margin), limiting, extent,
                  ShortScan(arc, fan), frame_clearance, first, obstacles, *_timing(system, q, q_start, ok,
-                                                                                  acquisition_time_s))
+                                                                                  acquisition_time_s),
+                 approach_motion)
+
+
+def _approach_motion(system, world, q_start, q_first, margin: float):
+    """The certified motion from ``q_start`` to the first frame keeping half the margin, or a failed trajectory
+    saying why (a start closer than that to something, or none found in time)."""
+    from carmkin.errors import MotionPlanError
+    from carmkin.motion import MotionPlanner
+
+    planner = MotionPlanner(system, margin=0.5 * margin, world=world)
+    try:
+        return planner.plan(np.asarray(q_start, float), q_first)
+    except MotionPlanError as exc:
+        return planner.failed(q_start, str(exc))
 
 
 #: Why a sweep has no approach time.
