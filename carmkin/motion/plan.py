@@ -7,8 +7,10 @@ certifier); :meth:`MotionPlanner.plan` runs one query:
    :class:`~carmkin.errors.MotionPlanError` naming the end, the joint or the closest pair;
 2. the straight segment ``q_from → q_to``, certified by :meth:`carmkin.motion.certificate.Certifier.segment`:
    when clear, it is the motion (the time-optimal straight line);
-3. otherwise OMPL's search (:func:`carmkin.motion.search.search`) within ``time_limit_s``, every state and
-   edge checked by the same certificate, then OMPL's simplifier;
+3. otherwise the manual route — the joints one at a time in the order of :data:`carmkin.world.DEFAULT_ORDER`,
+   each move certified — shortened by OMPL's simplifier (:func:`carmkin.motion.search.shortcut`) when it is clear;
+   else OMPL's search (:func:`carmkin.motion.search.search`) within ``time_limit_s``, every state and edge checked
+   by the same certificate, then OMPL's simplifier;
 4. the path's certified minimum clearance (:meth:`~carmkin.motion.certificate.Certifier.minimum`) and its
    time law (:class:`carmkin.motion.time_law.TimeLaw`, the presets' ``[motion]`` limits).
 
@@ -25,15 +27,18 @@ import numpy as np
 from carmkin.errors import MotionPlanError
 from carmkin.validation import JOINT_VALUE_LIMIT, real_array, real_scalar
 from carmkin.world import DEFAULT_MARGIN, World
+from carmkin.world.moves import greedy_moves, move_order
 from carmkin.world.obstacles import link_of
 
 from .scene import scene_of
-from .search import PLANNERS, search
+from .search import PLANNERS, Checks, search, shortcut
 from .time_law import TimeLaw
 from .trajectory import Trajectory
 
 #: Default time budget (s) of one search (the straight segment needs none).
 DEFAULT_TIME_LIMIT_S = 2.0
+#: Share of the time budget OMPL's simplifier may spend shortening the manual route when that route is clear.
+SHORTCUT_SHARE = 0.25
 #: Largest time budget (s) one query may be given: ten minutes (more is a unit slip, e.g. ms as s).
 MAX_TIME_LIMIT_S = 600.0
 
@@ -85,23 +90,44 @@ class MotionPlanner:
         # OMPL sees the ends inside its bounds (a value within the range tolerance outside moves by round-off); the
         # path returned starts and ends exactly at q_from and q_to and is certified again as returned
         lower, upper = self.scene.lower, self.scene.upper
-        found = search(self.certifier, np.clip(q_from, lower, upper), np.clip(q_to, lower, upper), lower, upper,
-                       self.speed, self.margin, time_limit_s, planner)
-        if found.waypoints is None:
-            return self.failed(q_from, f"not found within {time_limit_s:g} s by OMPL's {PLANNERS[planner]} "
-                                       f"({found.states_checked} states, {found.edges_checked} edges checked; the "
-                                       f"direct segment is not clear: this does not prove that no path exists)",
-                               started)
-        Q, D = found.waypoints, found.distances
-        Q[0], Q[-1], D[0], D[-1] = q_from, q_to, d_from, d_to
+        inside_from, inside_to = np.clip(q_from, lower, upper), np.clip(q_to, lower, upper)
+        checks = Checks(self.certifier, self.margin)
+        manual = self._joint_by_joint(checks, inside_from, inside_to)
+        if manual is not None:  # the manual route is clear: OMPL's simplifier shortens it
+            Q = shortcut(checks, manual, lower, upper, self.speed, SHORTCUT_SHARE * time_limit_s)
+            changed = len(Q) != len(manual) or np.any(Q != manual)
+            method = "joint by joint" + (", shortcut by OMPL" if changed else "")
+        else:
+            found = search(self.certifier, inside_from, inside_to, lower, upper, self.speed, self.margin,
+                           time_limit_s, planner, checks=checks)
+            if found.waypoints is None:
+                return self.failed(q_from, f"not found within {time_limit_s:g} s by OMPL's {PLANNERS[planner]} "
+                                           f"({found.states_checked} states, {found.edges_checked} edges checked; "
+                                           f"neither the direct segment nor the joints one by one are clear: this "
+                                           f"does not prove that no path exists)", started)
+            Q, method = found.waypoints, PLANNERS[planner]
+        Q = Q.copy()
+        Q[0], Q[-1] = q_from, q_to
+        D = np.array([checks.distances(q) for q in Q])
+        D[0], D[-1] = d_from, d_to
         bound = math.inf
         for i in range(len(Q) - 1):  # the path as returned (exact ends), certified again: cheap, distances known
             check = self.certifier.segment(Q[i], Q[i + 1], D[i], D[i + 1], self.margin)
             if not check.clear:
-                return self.failed(q_from, f"the path OMPL's {PLANNERS[planner]} returned did not certify again "
-                                           f"at segment {i}", started)
+                return self.failed(q_from, f"the path ({method}) did not certify again at segment {i}", started)
             bound = min(bound, check.bound)
-        return self._trajectory(Q, D, bound, PLANNERS[planner], started)
+        return self._trajectory(Q, D, bound, method, started)
+
+    def _joint_by_joint(self, checks: Checks, q_from, q_to) -> np.ndarray | None:
+        """The manual route (:func:`carmkin.world.moves.greedy_moves` in :data:`carmkin.world.DEFAULT_ORDER`, each
+        move certified by ``checks``) as a polyline, or None when it is blocked (or the scene has no one world)."""
+        if self.world is None:
+            return None
+        done, blocked = greedy_moves(q_from, q_to, move_order(self.system),
+                                     lambda a, b: (checks.edge(a, b), None))
+        if blocked is not None:
+            return None
+        return np.array([q_from] + [after for _, _, after, _ in done])
 
     def failed(self, q_from, reason: str, started: float | None = None) -> Trajectory:
         """A trajectory that was not found, starting at ``q_from``, and why (``started``: perf_counter at the

@@ -61,7 +61,7 @@ def scene_of(system, patient=None, world: World | None = None) -> Scene:
         return _biplane_scene(system, patient)
     if world is None:
         world = World(system, patient)
-    elif world.system is not system:
+    elif world.system != system:  # equal systems share a world (the views' cache keys them by value)
         raise MotionPlanError("world belongs to another system: build it as carmkin.world.World(system, patient)")
     motion = _require_motion(system, "system")
     return Scene(system, system.joint_names, system.joint_ranges, system.prismatic, system.lower, system.upper, motion,

@@ -12,6 +12,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Sequence
 
+import numpy as np
+
 from carmkin.errors import CollisionSceneError
 from carmkin.validation import JOINT_VALUE_LIMIT, real_array, real_scalar
 
@@ -59,25 +61,43 @@ def joint_moves(world, q_from, q_to, order: Sequence[str] | None = None,
                         unit="m, rad")
     q_to = real_array(q_to, "q_to", (system.nq,), error=CollisionSceneError, limit=JOINT_VALUE_LIMIT, unit="m, rad")
     clearance = real_scalar(clearance, "clearance", error=CollisionSceneError, low=0.0, high=1.0, unit="m")
-    q, moves = q_from.copy(), []
-    pending = [k for k in move_order(system, order) if q_from[k] != q_to[k]]
+    moves = []
+
+    def check(q_a, q_b):
+        result = world.swept(q_a, q_b, margin=clearance)
+        return result.clear, result
+
+    done, blocked = greedy_moves(q_from, q_to, move_order(system, order), check)
+    for k, start, _, result in done:
+        moves.append(Move(system.joint_names[k], start, float(q_to[k]), True, result.min_distance))
+    if blocked is not None:
+        k, start, result = blocked
+        a, b = world.link_pairs()[result.contact_pair if result.contact_pair is not None else result.pair]
+        moves.append(Move(system.joint_names[k], start, float(q_to[k]), False, result.min_distance,
+                          f"no joint can move alone keeping {clearance * 1e3:g} mm: {system.joint_names[k]} "
+                          f"brings {a} to {result.min_distance * 1e3:.1f} mm of {b}"))
+    return tuple(moves)
+
+
+def greedy_moves(q_from, q_to, order: list[int], check):
+    """The manual rule, for any check: from ``q_from`` move, one joint at a time in ``order`` (joint indices), the
+    first pending joint whose move alone ``check(q_a, q_b) -> (clear, result)`` calls clear. Returns ``(done,
+    blocked)``: ``done`` the moves made, ``(joint, start, configuration after, result)`` each; ``blocked`` ``(joint,
+    start, result)`` of the first pending joint when none can move, else None."""
+    q, done = np.array(q_from, dtype=float), []
+    pending = [k for k in order if q_from[k] != q_to[k]]
     while pending:
         for k in pending:
             target = q.copy()
             target[k] = q_to[k]
-            check = world.swept(q, target, margin=clearance)
-            if check.clear:
-                moves.append(Move(system.joint_names[k], float(q[k]), float(q_to[k]), True, check.min_distance))
+            clear, result = check(q, target)
+            if clear:
+                done.append((k, float(q[k]), target, result))
                 q, pending = target, [j for j in pending if j != k]
                 break
         else:
             k = pending[0]
             target = q.copy()
             target[k] = q_to[k]
-            check = world.swept(q, target, margin=clearance)
-            a, b = world.link_pairs()[check.contact_pair if check.contact_pair is not None else check.pair]
-            moves.append(Move(system.joint_names[k], float(q[k]), float(q_to[k]), False, check.min_distance,
-                              f"no joint can move alone keeping {clearance * 1e3:g} mm: {system.joint_names[k]} "
-                              f"brings {a} to {check.min_distance * 1e3:.1f} mm of {b}"))
-            break
-    return tuple(moves)
+            return done, (k, float(q[k]), check(q, target)[1])
+    return done, None
