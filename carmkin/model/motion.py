@@ -224,7 +224,8 @@ def velocity_profile(motion: Motion, q_from, q_to, t) -> np.ndarray:
     acceleration with the cruise speed lowered to fit, zero outside ``[0, T]``."""
     times = joint_times(motion, q_from, q_to)
     delta = np.asarray(q_to, float) - np.asarray(q_from, float)
-    t = real_array(t, "t", (None,), error=MotionError, unit="s")
+    # a move at the smallest rates lasts far beyond 1e6 s: t only guards overflow (a·t stays finite)
+    t = real_array(t, "t", (None,), error=MotionError, limit=JOINT_VALUE_LIMIT, unit="s")
     T = float(times.max())
     out = np.zeros((len(t), motion.nq))
     if T == 0.0:
@@ -234,12 +235,16 @@ def velocity_profile(motion: Motion, q_from, q_to, t) -> np.ndarray:
         if d_abs == 0.0:
             continue
         a = joint.acceleration
-        if a is None:  # speed only: constant d/T over the whole move
-            out[:, k] = np.where((t >= 0) & (t <= T), d / T, 0.0)
+        if a is None:  # speed only: constant d/T over the whole move (at most the speed: min() drops round-off)
+            out[:, k] = np.where((t >= 0) & (t <= T), math.copysign(min(d_abs / T, joint.speed), d), 0.0)
             continue
-        # cruise speed v with d/v + v/a = T (the smaller root: a trapezoid of duration T; T ≥ 2√(d/a) here)
-        disc = max((a * T) ** 2 - 4.0 * a * d_abs, 0.0)
-        v = 0.5 * (a * T - math.sqrt(disc))
+        # cruise speed v with d/v + v/a = T, the smaller root (a trapezoid of duration T; T ≥ 2√(d/a) here):
+        # ½(aT − √((aT)² − 4ad)) loses v to cancellation when v ≪ aT (issue 41: up to 1.4e-3 above the speed
+        # limit, 6.5 % off the move), so the root is taken in the form without a difference, 2d/(T + √(T² − 4d/a)),
+        # written 2d / (T (1 + √(1 − 4d/(aT²)))) so that T² cannot overflow. It is at most the joint's speed
+        # (equal for the slowest joint); min() drops the last ulp of round-off.
+        ratio = 4.0 * d_abs / a / T / T
+        v = min(2.0 * d_abs / (T * (1.0 + math.sqrt(max(1.0 - ratio, 0.0)))), joint.speed)
         speed = np.clip(np.minimum(a * t, a * (T - t)), 0.0, v)
         speed[(t < 0) | (t > T)] = 0.0
         out[:, k] = math.copysign(1.0, d) * speed
