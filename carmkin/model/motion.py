@@ -109,8 +109,8 @@ class Motion:
     def of(cls, names, speeds, accelerations=None) -> "Motion":
         """A motion from parallel sequences: joint names, speeds and accelerations (``None`` entries or
         ``accelerations=None``: not known)."""
-        names, speeds = list(names), list(speeds)
-        accelerations = [None] * len(names) if accelerations is None else list(accelerations)
+        names, speeds = _sequence(names, "names"), _sequence(speeds, "speeds")
+        accelerations = [None] * len(names) if accelerations is None else _sequence(accelerations, "accelerations")
         if not len(names) == len(speeds) == len(accelerations):
             raise MotionError(f"Motion.of: {len(names)} names, {len(speeds)} speeds and {len(accelerations)} "
                               "accelerations: give one of each per joint")
@@ -136,6 +136,21 @@ class Motion:
             if joint.name == name:
                 return joint
         raise MotionError(f"no joint {name!r} in this motion; joints: {', '.join(self.names)}")
+
+
+def _sequence(value, name: str) -> list:
+    """``value`` (a list, tuple or 1-D array: one entry per joint) as a list, or MotionError naming ``name``."""
+    if not isinstance(value, (list, tuple, np.ndarray)) or (isinstance(value, np.ndarray) and value.ndim != 1):
+        raise MotionError(f"Motion.of: {name} must be a list with one entry per joint, got {value!r:.60}")
+    return list(value)
+
+
+def _timing(timing, allowed) -> Timing:
+    """``timing`` when it is one of ``allowed`` (:class:`Timing` members), or MotionError naming them."""
+    if not isinstance(timing, Timing) or timing not in allowed:
+        raise MotionError(f"timing must be {' or '.join(f'Timing.{t.name}' for t in allowed)} for one move, got "
+                          f"{timing!r:.60}")
+    return timing
 
 
 def joint_time(distance, speed, acceleration=None) -> float:
@@ -200,8 +215,7 @@ def joint_times(motion: Motion, q_from, q_to) -> np.ndarray:
 def move_duration(motion: Motion, q_from, q_to, timing: Timing = Timing.SYNCHRONIZED) -> Duration:
     """The duration of the move ``q_from`` → ``q_to`` (nq,): ``max_j t_j`` synchronized (every joint at
     once), ``Σ_j t_j`` joint by joint."""
-    if timing not in (Timing.SYNCHRONIZED, Timing.JOINT_BY_JOINT):
-        raise MotionError(f"timing must be Timing.SYNCHRONIZED or Timing.JOINT_BY_JOINT for one move, got {timing!r}")
+    timing = _timing(timing, (Timing.SYNCHRONIZED, Timing.JOINT_BY_JOINT))
     times = joint_times(motion, q_from, q_to)
     total = float(times.max()) if timing is Timing.SYNCHRONIZED else float(times.sum())
     slowest = motion.joints[int(np.argmax(times))].name if times.max() > 0 else None
@@ -333,7 +347,15 @@ def follow(motion: Motion | None, q, acquisition_time=None, prismatic=None) -> F
         raise MotionError(f"a sweep needs at least two views to be timed, got {len(Q)}")
     if acquisition_time is not None:
         acquisition_time = check_acquisition_time(acquisition_time)
-    prismatic = (False,) * motion.nq if prismatic is None else tuple(bool(p) for p in prismatic)
+    if prismatic is None:
+        prismatic = (False,) * motion.nq
+    elif (not isinstance(prismatic, (list, tuple, np.ndarray)) or getattr(prismatic, "ndim", 1) != 1
+          or len(prismatic) != motion.nq
+          or not all(isinstance(p, (bool, np.bool_)) for p in prismatic)):
+        raise MotionError(f"prismatic must be {motion.nq} bools (one per joint: True for a prismatic joint), got "
+                          f"{prismatic!r:.60}")
+    else:
+        prismatic = tuple(bool(p) for p in prismatic)
     steps = len(Q) - 1
     step = np.diff(Q, axis=0)                        # Δq per step (steps, nq)
     bend = np.diff(step, axis=0) if steps > 1 else np.zeros((0, motion.nq))  # Δ²q at interior views
@@ -372,6 +394,9 @@ def follow(motion: Motion | None, q, acquisition_time=None, prismatic=None) -> F
 
 def system_move(system, q_from, q_to, timing: Timing = Timing.SYNCHRONIZED) -> Duration:
     """:func:`move_duration` on ``system.motion``, or an unknown duration (:data:`NO_SPEEDS`) without it."""
+    from carmkin.model.system import require_system
+
+    require_system(system, MotionError)
     if system.motion is None:
-        return unknown(timing)
+        return unknown(_timing(timing, (Timing.SYNCHRONIZED, Timing.JOINT_BY_JOINT)))
     return move_duration(system.motion, q_from, q_to, timing)
