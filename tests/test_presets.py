@@ -421,3 +421,24 @@ def test_a_preset_without_motion_has_no_speeds(tmp_path):
     text = BUILTIN[: BUILTIN.index("[motion]")]
     system = _load(text, tmp_path)
     assert system.motion is None and "[motion]" not in to_toml(system)
+
+
+def test_the_angiography_propeller_runs_a_200_degree_rotational_run_in_5_s(capsys):
+    """Issue 41: the propeller was limited to 25°/s, so a 200° run in 5 s (rotational angiography: 200° in 5–20 s)
+    was refused. The acceptance's command exits 0 and says the joints follow; the speed has a stated provenance."""
+    from carmkin.cli import main
+
+    assert main(["sweep", "plan", "--preset", "angio-floor", "--joint", "angular", "--arc-deg", "200", "--views",
+                 "30", "--acquisition-time-s", "5"]) == 0
+    assert "the joints follow a 5.0 s acquisition" in capsys.readouterr().out
+    assert preset_provenance("angio-floor")["motion.angular_speed_deg_s"].kind in ("source", "assumption")
+
+
+def test_a_motorized_joint_is_not_described_as_moved_by_hand():
+    """Issue 41: cios-spin's angulation was "moved by hand" while its source (Sheth et al. 2020) names rotation,
+    angulation and height as its motorized axes."""
+    provenance = preset_provenance("cios-spin")
+    for joint, unit in (("orbital", "deg"), ("angular", "deg"), ("vertical", "mm")):
+        for kind in ("speed", "acceleration"):
+            note = provenance[f"motion.{joint}_{kind}_{unit}_s{'2' if kind == 'acceleration' else ''}"].note
+            assert "by hand" not in note, (joint, kind, note)
