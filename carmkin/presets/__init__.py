@@ -324,7 +324,7 @@ def _get(section: dict, key: str, where: str):
 #: the accelerations of ``[motion]`` (absent = not known), ``principal_point_px`` (absent = the detector
 #: centre) and ``c_radius_mm`` (absent = the source to orbital axis distance) are optional as well;
 #: ``ceiling_height_mm`` is required with ``mount = "ceiling"`` (unused by a floor stand).
-OPTIONAL_KEYS = {"carm.a1_mm": 0.0, "carm.a2_mm": 0.0, "body.mount": "floor"}
+OPTIONAL_KEYS = {"carm.a1_mm": 0.0, "carm.a2_mm": 0.0, "body.mount": BodyGeometry.mount}
 #: The keys of ``[body]`` that every preset gives (mm): the collision and visual primitives.
 BODY_KEYS = ("floor_height_mm", "cart_size_mm", "column_width_mm", "c_thickness_mm", "c_depth_mm",
              "source_housing_mm", "detector_thickness_mm")

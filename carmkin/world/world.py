@@ -30,7 +30,7 @@ import pinocchio as pin
 
 from carmkin.errors import CollisionSceneError, InvalidConfigurationError, PatientModelError
 from carmkin.model.system import require_system
-from carmkin.validation import JOINT_VALUE_LIMIT, flag, real_array
+from carmkin.validation import JOINT_VALUE_LIMIT, flag, plain_floats, real_array
 
 from .obstacles import as_obstacles, carm_pair_names, link_of
 from .tolerances import DEFAULT_PATH_CLEARANCE, DEFAULT_TOLERANCE
@@ -165,7 +165,10 @@ class World:
         return np.array([r.min_distance for r in self._results])
 
     def _q(self, q, name: str = "q") -> np.ndarray:
-        """One configuration (nq,) in m and rad, or InvalidConfigurationError naming ``name``."""
+        """One configuration (nq,) in m and rad, or InvalidConfigurationError naming ``name`` (a plainly valid
+        float64 array passes by :func:`~carmkin.validation.plain_floats`: the swept and QP loops call this)."""
+        if type(q) is np.ndarray and plain_floats(q, self.model.nq, JOINT_VALUE_LIMIT) is not None:
+            return q
         return real_array(q, name, (self.model.nq,), error=InvalidConfigurationError, limit=JOINT_VALUE_LIMIT,
                           unit="m, rad")
 
