@@ -7,6 +7,8 @@ import numpy as np
 import pytest
 
 import carmkin
+import carmkin.model.mount_joints
+import carmkin.world.between
 from carmkin.errors import PatientModelError, QPIKError, SimulationError, SingularityError, SweepError
 from carmkin.patient import ParametricPatient
 from carmkin.qp_ik import QPIKOptions
@@ -125,3 +127,78 @@ def test_failed_sweep_exports_are_refused_and_write_no_file(tmp_path):
         export.write_rtk_xml(sweep, path)
     assert not path.exists()
     assert export.rtk_frames(sweep, geometry_only=True)[0].shape == (sweep.n_views, 3)
+
+
+# --- issue 41: the fuzz's LOW and UNTYPED classes (world queries, Between, motion, the mount) ----------------
+def _world():
+    from carmkin.world import World
+
+    return World(PRESET)
+
+
+def _q():
+    return (PRESET.lower + PRESET.upper) / 2
+
+
+def _between():
+    from carmkin.world.between import Between
+
+    world = _world()
+    return Between(world, world)
+
+
+def _motion():
+    from carmkin.model import motion
+
+    return motion
+
+
+CASES_41 = [
+    ("q", carmkin.errors.InvalidConfigurationError, lambda: _world().grouped("abc")),
+    ("q", carmkin.errors.InvalidConfigurationError, lambda: _world().grouped(np.ones(PRESET.nq, bool))),
+    ("q", carmkin.errors.InvalidConfigurationError, lambda: _world().distances(q=np.ones(PRESET.nq, complex))),
+    ("data", carmkin.errors.CollisionSceneError, lambda: _world().distances(data="x")),
+    ("qs", carmkin.errors.InvalidConfigurationError, lambda: _world().clearance([[1.0], [1.0, 2.0]])),
+    ("qs", carmkin.errors.InvalidConfigurationError, lambda: _world().nearest(np.array("a"))),
+    ("exact_below", carmkin.errors.CollisionSceneError, lambda: _world().clearance(_q(), exact_below="1")),
+    ("exact_below", carmkin.errors.CollisionSceneError, lambda: _world().nearest(_q(), exact_below=float("nan"))),
+    ("exact_below", carmkin.errors.CollisionSceneError, lambda: _world().nearest(_q(), exact_below=True)),
+    ("exact_below", carmkin.errors.CollisionSceneError, lambda: _world().nearest(_q(), exact_below=1j)),
+    ("stop_below", carmkin.errors.CollisionSceneError, lambda: _world().nearest(_q(), stop_below=np.array("a"))),
+    ("order", carmkin.errors.CollisionSceneError, lambda: _world().moves(_q(), _q(), order=5)),
+    ("stop_at_contact", carmkin.errors.CollisionSceneError, lambda: _world().swept(_q(), _q(), stop_at_contact="False")),
+    ("path_min", carmkin.errors.CollisionSceneError, lambda: _world().swept(_q(), _q(), path_min=float("nan"))),
+    ("path_min", carmkin.errors.CollisionSceneError, lambda: _world().swept(_q(), _q(), path_min=True)),
+    ("world_a", carmkin.errors.CollisionSceneError, lambda: carmkin.world.between.Between(None, _world())),
+    ("links", carmkin.errors.CollisionSceneError, lambda: carmkin.world.between.Between(_world(), _world(),
+                                                                                         links=None)),
+    ("q of world a", carmkin.errors.CollisionSceneError, lambda: _between().distances(np.ones(PRESET.nq, bool), _q())),
+    ("q of world a", carmkin.errors.CollisionSceneError, lambda: _between().nearest(["a"] * PRESET.nq, _q())),
+    ("names", carmkin.errors.MotionError, lambda: _motion().Motion.of({"a": 1}, [1.0])),
+    ("speeds", carmkin.errors.MotionError, lambda: _motion().Motion.of(["a"], b"x")),
+    ("accelerations", carmkin.errors.MotionError, lambda: _motion().Motion.of(["a"], [1.0], 5)),
+    ("prismatic", carmkin.errors.MotionError, lambda: _motion().follow(PRESET.motion, np.zeros((3, PRESET.nq)), 1.0,
+                                                                       prismatic="yes")),
+    ("system", carmkin.errors.MotionError, lambda: _motion().system_move(None, _q(), _q())),
+    ("timing", carmkin.errors.MotionError, lambda: _motion().move_duration(PRESET.motion, _q(), _q(),
+                                                                           np.ones(PRESET.nq, bool))),
+    ("base_origin", carmkin.errors.InvalidParameterError, lambda: carmkin.model.mount_joints.MountGeometry(
+        base_origin=np.ones(3, complex))),
+    ("base_origin", carmkin.errors.InvalidParameterError, lambda: carmkin.model.mount_joints.MountGeometry(
+        base_origin=np.ones(3, bool))),
+    ("base_x_axis", carmkin.errors.InvalidParameterError, lambda: carmkin.model.mount_joints.MountGeometry(
+        base_x_axis=np.array([1j, 0, 0]))),
+    ("carm_base", carmkin.errors.InvalidParameterError, lambda: carmkin.model.mount_joints.MountGeometry(
+        carm_base=((0, 0, 0), (1j, 0, 0), (0, 0, 1)))),
+]
+
+
+@pytest.mark.parametrize("name, error, call", CASES_41, ids=[f"{i}-{c[0]}" for i, c in enumerate(CASES_41)])
+def test_issue_41_junk_is_a_typed_error_naming_the_argument(name, error, call):
+    """Issue 41 (fuzz, LOW and UNTYPED): junk to World.grouped/distances/clearance/nearest/moves and Between, a
+    truthy string as swept(stop_at_contact=), NaN/bool/complex thresholds, junk to Motion.of, follow,
+    system_move, move_duration, complex or bool arrays to MountGeometry: each a typed error naming the argument
+    (before: ValueError, TypeError, AttributeError, pinocchio's ArgumentError, a ComplexWarning, or accepted)."""
+    with pytest.raises(error) as info:
+        call()
+    assert name in str(info.value)

@@ -40,7 +40,10 @@ def sample_poses(system, prior, n, seed=0, patient=None, *, shard=0, margin=DEFA
     margin = real_scalar(margin, "margin", error=DatasetError, low=0.0, high=1.0, unit="m")
     rng = np.random.default_rng([seed, shard])
     priors.check_parameters(prior, prior_parameters)
-    Q, labels, nominal, rejections, params = priors.DRAW[prior](system, patient, rng, n, margin, **prior_parameters)
+    # the sweep prior names its sweeps by the shard too: labels unique across the shards of a dataset
+    where = (shard,) if prior == "sweep" else ()
+    Q, labels, nominal, rejections, params = priors.DRAW[prior](system, patient, rng, n, margin, *where,
+                                                               **prior_parameters)
     provenance = {"preset": system.name, "patient": samples.describe_patient(patient), "prior": prior,
                   "parameters": params, "seed": seed, "shard": shard, "margin_m": margin, "carmkin": _version()}
     return samples.build(system, patient, Q, labels, nominal, provenance, rejections, margin)

@@ -17,7 +17,8 @@ from .shards import MANIFEST
 class DatasetInfo:
     """``manifest`` (the spec as JSON), ``shards`` expected, ``done`` (indices there whole), ``missing``,
     ``rows`` written, ``image_shape`` (rows, columns), ``columns`` (name: Arrow type), ``proposed`` and
-    ``accepted`` poses summed over the shards' rejection reports, ``reasons`` summed."""
+    ``accepted`` poses summed over the shards' rejection reports, ``reasons`` summed, ``empty`` the all-zero
+    images (the beam missed the CT) summed over the shards."""
 
     out: str
     manifest: dict
@@ -30,6 +31,7 @@ class DatasetInfo:
     proposed: int
     accepted: int
     reasons: dict
+    empty: int = 0
 
     def lines(self) -> list[str]:
         m = self.manifest
@@ -42,6 +44,8 @@ class DatasetInfo:
         if self.proposed:
             out.append(f"poses accepted {self.accepted} of {self.proposed} proposed "
                        f"({self.accepted / self.proposed:.1%}); rejected by {json.dumps(self.reasons, sort_keys=True)}")
+        if self.rows:
+            out.append(f"empty images (all zero: the beam misses the CT) {self.empty} of {self.rows}")
         if self.image_shape:
             out.append(f"image {self.image_shape[0]}x{self.image_shape[1]} (rows x columns) float32, row-major")
         out.append("columns " + ", ".join(f"{k} {v}" for k, v in self.columns.items()))
@@ -65,7 +69,7 @@ def info(out) -> DatasetInfo:
     except (OSError, ValueError, KeyError) as exc:
         raise DatasetError(f"{str(path)!r} is not a carmkin dataset manifest ({exc})") from None
     shards = -(-n // size)
-    done, missing, rows, shape, columns, proposed, accepted, reasons = [], [], 0, None, {}, 0, 0, {}
+    done, missing, rows, shape, columns, proposed, accepted, reasons, empty = [], [], 0, None, {}, 0, 0, {}, 0
     for k in range(shards):
         shard = folder / f"shard-{k:05d}-of-{shards:05d}.parquet"
         expected = min(size, n - k * size)
@@ -84,8 +88,9 @@ def info(out) -> DatasetInfo:
         shape = tuple(extra["image_shape"])
         columns = {f.name: str(f.type) for f in schema}
         report = extra["rejections"]
+        empty += extra.get("empty_images", {}).get("count", 0)
         proposed, accepted = proposed + report["proposed"], accepted + report["accepted"]
         for key, count in report["reasons"].items():
             reasons[key] = reasons.get(key, 0) + count
     return DatasetInfo(str(folder), manifest, shards, tuple(done), tuple(missing), rows, shape, columns, proposed,
-                       accepted, reasons)
+                       accepted, reasons, empty)

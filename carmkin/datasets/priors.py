@@ -271,7 +271,13 @@ def reachable_sphere(system, patient, rng, n, margin, *, cell_deg=5.0, jitter_mm
     return Q, np.full(len(Q), "", dtype=object), nominal, tally.rejections(notes), params
 
 
-def sweep(system, patient, rng, n, margin, *, arc_deg=190.0, n_views=50, jitter_mm=20.0, target_m=None):
+#: Frames per sweep of the ``sweep`` prior by default.
+SWEEP_VIEWS = 50
+
+
+def sweep(system, patient, rng, n, margin, shard=0, *, arc_deg=190.0, n_views=SWEEP_VIEWS, jitter_mm=20.0,
+          target_m=None):
+    """Sweeps labelled ``"sweep K.I"``: the I-th proposal of shard K (unique across the shards of a dataset)."""
     from carmkin.sweeps import plan_sweep
 
     arc = _number(arc_deg, "arc_deg", 1e-3, 360.0, "deg")
@@ -288,14 +294,15 @@ def sweep(system, patient, rng, n, margin, *, arc_deg=190.0, n_views=50, jitter_
         index = tally.proposed
         tally.add(np.array([planned.success]), np.array(["sweep failed"], dtype=object), np.array([""], dtype=object))
         if planned.success:
-            kept.append((np.asarray(planned.q), np.full(views, f"sweep {index}", dtype=object)))
+            kept.append((np.asarray(planned.q), np.full(views, f"sweep {shard}.{index}", dtype=object)))
         else:
             failures.append(str(getattr(planned.failure, "reason", planned.failure)))
         tally.accepted = sum(len(q) for q, _ in kept)
     Q = np.concatenate([q for q, _ in kept])[:n]
     labels = np.concatenate([g for _, g in kept])[:n]
     swept = sum(1 for _ in kept)
-    notes = (f"{swept} of {tally.proposed} sweeps planned ({views} frames each; the last may be cut to n)",)
+    notes = (f"{swept} of {tally.proposed} sweeps planned ({views} frames each"
+             + (f"; the last cut to {n % views} frames: n = {n} is no multiple of n_views)" if n % views else ")"),)
     rejections = Rejections(tally.proposed, swept, dict(tally.reasons), {}, notes)
     params = {"arc_deg": arc, "n_views": views, "jitter_mm": jitter * 1e3, "target_m": target.tolist()}
     return Q, labels, np.full((len(Q), 2), np.nan), rejections, params
@@ -317,6 +324,20 @@ def joint_uniform(system, patient, rng, n, margin):
 
 DRAW = {"standard-views": standard_views, "reachable-sphere": reachable_sphere, "sweep": sweep,
         "joint-uniform": joint_uniform}
+
+
+def check_whole_groups(prior: str, parameters: dict, n: int, shard_size: int) -> None:
+    """A dataset of the ``sweep`` prior holds whole sweeps, none cut at a shard's end: ``shard_size`` and
+    ``n`` multiples of ``n_views``, or :class:`DatasetError` naming them and the nearest that are."""
+    if prior != "sweep":
+        return
+    views = _integer(parameters.get("n_views", SWEEP_VIEWS), "n_views", 2, 10_000)
+    for name, value in (("shard_size", shard_size), ("n", n)):
+        if value % views:
+            lower, upper = max(views, value // views * views), (value // views + 1) * views
+            raise DatasetError(f"{name} = {value} is no multiple of n_views = {views}: a sweep would be cut "
+                               f"{'at a shard boundary' if name == 'shard_size' else 'at the end'}; use "
+                               f"{name} = {lower}" + (f" or {upper}" if upper != lower else ""))
 
 
 def check_prior(prior) -> str:

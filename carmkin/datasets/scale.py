@@ -52,6 +52,7 @@ def check(spec: Spec) -> Spec:
     integer(spec.seed, "seed", low=0, error=DatasetError)
     integer(spec.shard_size, "shard_size", low=1, error=DatasetError)
     integer(spec.n_samples, "n_samples", low=1, high=100_000, error=DatasetError)
+    priors.check_whole_groups(spec.prior, spec.parameters, spec.n, spec.shard_size)
     size = parse_size(spec.size)
     binning(spec.system, size)
     for module, extra in (("pyarrow", "datasets"), ("torch", "drr"), ("nanodrr", "drr"), ("nibabel", "drr")):

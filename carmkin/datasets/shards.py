@@ -14,7 +14,8 @@ float64 (m, rad), ``source_pose`` (16) float64 (the source frame in the table fr
 float64, ``landmarks`` (2·L) float64 (u, v per landmark; NaN behind the source), ``landmarks_visible`` (L)
 bool, ``image`` (rows·columns) float32 (the DRR, row-major (rows, columns)). The schema metadata key
 ``carmkin`` holds JSON: the spec, ``image_encoding``, ``image_shape`` (rows, columns), the landmark names and
-points (table frame, m), the CT's pose in the table frame, the shard's provenance and rejection report.
+points (table frame, m), the CT's pose in the table frame, the shard's provenance and rejection report, and
+``empty_images`` (``count`` and dataset ``rows`` of the all-zero images: the beam missed the CT).
 """
 
 from __future__ import annotations
@@ -184,6 +185,8 @@ def make(spec: Spec, k: int):
     images = renderer.render(samples.source_pose)
     P = renderer.projection_matrices(samples.source_pose)
     uv, visible = renderer.labels(P)
+    # an all-zero DRR: the beam misses the CT (e.g. joint-uniform poses); kept, and counted in the report
+    empty = np.flatnonzero(~images.reshape(len(images), -1).any(axis=1))
 
     def fixed(values, dtype):
         values = np.ascontiguousarray(values)
@@ -194,7 +197,9 @@ def make(spec: Spec, k: int):
                 "image_shape": [renderer.size[1], renderer.size[0]], "landmark_names": list(renderer.landmark_names),
                 "landmark_points_table_m": renderer.landmark_points.tolist(), "T_table_ct": renderer.T_table_ct.tolist(),
                 "P_for": "table-frame m to pixels of the stored image (centres at integers)",
-                "provenance": samples.provenance, "rejections": samples.rejections.as_dict()}
+                "provenance": samples.provenance, "rejections": samples.rejections.as_dict(),
+                "empty_images": {"count": len(empty), "rows": (start + empty).tolist(),
+                                 "why": "all-zero DRR: the beam misses the CT"}}
     columns = {
         "index": pa.array(np.arange(start, start + count, dtype=np.int64)),
         "shard": pa.array(np.full(count, k, dtype=np.int32)),

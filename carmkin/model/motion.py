@@ -109,8 +109,8 @@ class Motion:
     def of(cls, names, speeds, accelerations=None) -> "Motion":
         """A motion from parallel sequences: joint names, speeds and accelerations (``None`` entries or
         ``accelerations=None``: not known)."""
-        names, speeds = list(names), list(speeds)
-        accelerations = [None] * len(names) if accelerations is None else list(accelerations)
+        names, speeds = _sequence(names, "names"), _sequence(speeds, "speeds")
+        accelerations = [None] * len(names) if accelerations is None else _sequence(accelerations, "accelerations")
         if not len(names) == len(speeds) == len(accelerations):
             raise MotionError(f"Motion.of: {len(names)} names, {len(speeds)} speeds and {len(accelerations)} "
                               "accelerations: give one of each per joint")
@@ -136,6 +136,21 @@ class Motion:
             if joint.name == name:
                 return joint
         raise MotionError(f"no joint {name!r} in this motion; joints: {', '.join(self.names)}")
+
+
+def _sequence(value, name: str) -> list:
+    """``value`` (a list, tuple or 1-D array: one entry per joint) as a list, or MotionError naming ``name``."""
+    if not isinstance(value, (list, tuple, np.ndarray)) or (isinstance(value, np.ndarray) and value.ndim != 1):
+        raise MotionError(f"Motion.of: {name} must be a list with one entry per joint, got {value!r:.60}")
+    return list(value)
+
+
+def _timing(timing, allowed) -> Timing:
+    """``timing`` when it is one of ``allowed`` (:class:`Timing` members), or MotionError naming them."""
+    if not isinstance(timing, Timing) or timing not in allowed:
+        raise MotionError(f"timing must be {' or '.join(f'Timing.{t.name}' for t in allowed)} for one move, got "
+                          f"{timing!r:.60}")
+    return timing
 
 
 def joint_time(distance, speed, acceleration=None) -> float:
@@ -200,8 +215,7 @@ def joint_times(motion: Motion, q_from, q_to) -> np.ndarray:
 def move_duration(motion: Motion, q_from, q_to, timing: Timing = Timing.SYNCHRONIZED) -> Duration:
     """The duration of the move ``q_from`` → ``q_to`` (nq,): ``max_j t_j`` synchronized (every joint at
     once), ``Σ_j t_j`` joint by joint."""
-    if timing not in (Timing.SYNCHRONIZED, Timing.JOINT_BY_JOINT):
-        raise MotionError(f"timing must be Timing.SYNCHRONIZED or Timing.JOINT_BY_JOINT for one move, got {timing!r}")
+    timing = _timing(timing, (Timing.SYNCHRONIZED, Timing.JOINT_BY_JOINT))
     times = joint_times(motion, q_from, q_to)
     total = float(times.max()) if timing is Timing.SYNCHRONIZED else float(times.sum())
     slowest = motion.joints[int(np.argmax(times))].name if times.max() > 0 else None
@@ -224,7 +238,8 @@ def velocity_profile(motion: Motion, q_from, q_to, t) -> np.ndarray:
     acceleration with the cruise speed lowered to fit, zero outside ``[0, T]``."""
     times = joint_times(motion, q_from, q_to)
     delta = np.asarray(q_to, float) - np.asarray(q_from, float)
-    t = real_array(t, "t", (None,), error=MotionError, unit="s")
+    # a move at the smallest rates lasts far beyond 1e6 s: t only guards overflow (a·t stays finite)
+    t = real_array(t, "t", (None,), error=MotionError, limit=JOINT_VALUE_LIMIT, unit="s")
     T = float(times.max())
     out = np.zeros((len(t), motion.nq))
     if T == 0.0:
@@ -234,12 +249,16 @@ def velocity_profile(motion: Motion, q_from, q_to, t) -> np.ndarray:
         if d_abs == 0.0:
             continue
         a = joint.acceleration
-        if a is None:  # speed only: constant d/T over the whole move
-            out[:, k] = np.where((t >= 0) & (t <= T), d / T, 0.0)
+        if a is None:  # speed only: constant d/T over the whole move (at most the speed: min() drops round-off)
+            out[:, k] = np.where((t >= 0) & (t <= T), math.copysign(min(d_abs / T, joint.speed), d), 0.0)
             continue
-        # cruise speed v with d/v + v/a = T (the smaller root: a trapezoid of duration T; T ≥ 2√(d/a) here)
-        disc = max((a * T) ** 2 - 4.0 * a * d_abs, 0.0)
-        v = 0.5 * (a * T - math.sqrt(disc))
+        # cruise speed v with d/v + v/a = T, the smaller root (a trapezoid of duration T; T ≥ 2√(d/a) here):
+        # ½(aT − √((aT)² − 4ad)) loses v to cancellation when v ≪ aT (issue 41: up to 1.4e-3 above the speed
+        # limit, 6.5 % off the move), so the root is taken in the form without a difference, 2d/(T + √(T² − 4d/a)),
+        # written 2d / (T (1 + √(1 − 4d/(aT²)))) so that T² cannot overflow. It is at most the joint's speed
+        # (equal for the slowest joint); min() drops the last ulp of round-off.
+        ratio = 4.0 * d_abs / a / T / T
+        v = min(2.0 * d_abs / (T * (1.0 + math.sqrt(max(1.0 - ratio, 0.0)))), joint.speed)
         speed = np.clip(np.minimum(a * t, a * (T - t)), 0.0, v)
         speed[(t < 0) | (t > T)] = 0.0
         out[:, k] = math.copysign(1.0, d) * speed
@@ -328,7 +347,15 @@ def follow(motion: Motion | None, q, acquisition_time=None, prismatic=None) -> F
         raise MotionError(f"a sweep needs at least two views to be timed, got {len(Q)}")
     if acquisition_time is not None:
         acquisition_time = check_acquisition_time(acquisition_time)
-    prismatic = (False,) * motion.nq if prismatic is None else tuple(bool(p) for p in prismatic)
+    if prismatic is None:
+        prismatic = (False,) * motion.nq
+    elif (not isinstance(prismatic, (list, tuple, np.ndarray)) or getattr(prismatic, "ndim", 1) != 1
+          or len(prismatic) != motion.nq
+          or not all(isinstance(p, (bool, np.bool_)) for p in prismatic)):
+        raise MotionError(f"prismatic must be {motion.nq} bools (one per joint: True for a prismatic joint), got "
+                          f"{prismatic!r:.60}")
+    else:
+        prismatic = tuple(bool(p) for p in prismatic)
     steps = len(Q) - 1
     step = np.diff(Q, axis=0)                        # Δq per step (steps, nq)
     bend = np.diff(step, axis=0) if steps > 1 else np.zeros((0, motion.nq))  # Δ²q at interior views
@@ -367,6 +394,9 @@ def follow(motion: Motion | None, q, acquisition_time=None, prismatic=None) -> F
 
 def system_move(system, q_from, q_to, timing: Timing = Timing.SYNCHRONIZED) -> Duration:
     """:func:`move_duration` on ``system.motion``, or an unknown duration (:data:`NO_SPEEDS`) without it."""
+    from carmkin.model.system import require_system
+
+    require_system(system, MotionError)
     if system.motion is None:
-        return unknown(timing)
+        return unknown(_timing(timing, (Timing.SYNCHRONIZED, Timing.JOINT_BY_JOINT)))
     return move_duration(system.motion, q_from, q_to, timing)

@@ -27,6 +27,7 @@ from functools import cached_property
 import numpy as np
 
 from carmkin.errors import InvalidParameterError
+from carmkin.validation import real_array
 
 from .bounds import MAX_LENGTH, check_length
 from .table_joints import TableJoint
@@ -57,9 +58,14 @@ class MountJoint(TableJoint):
                           tuple(R @ np.asarray(self.point) + t), self.range)
 
 
+def _vector(name: str, value, unit: str) -> np.ndarray:
+    """``MountGeometry.<name>``: three real numbers (no bool, complex, string), or InvalidParameterError."""
+    return real_array(value, f"MountGeometry.{name}", (3,), unit=unit)
+
+
 def _direction(name: str, value) -> np.ndarray:
-    v = np.asarray(value, dtype=float)
-    if v.shape != (3,) or not np.all(np.isfinite(v)) or abs(np.linalg.norm(v) - 1.0) > AXIS_TOLERANCE:
+    v = _vector(name, value, "unit vector")
+    if abs(np.linalg.norm(v) - 1.0) > AXIS_TOLERANCE:
         raise InvalidParameterError(f"MountGeometry.{name} must be a unit 3-vector, got {value!r}")
     return v
 
@@ -96,9 +102,7 @@ class MountGeometry:
         names = [getattr(j, "name", None) for j in self.joints]
         if len(set(names)) != len(names) or not all(isinstance(j, MountJoint) for j in self.joints):
             raise InvalidParameterError(f"MountGeometry.joints must be distinct MountJoint objects, got {names}")
-        origin = np.asarray(self.base_origin, dtype=float)
-        if origin.shape != (3,):
-            raise InvalidParameterError(f"MountGeometry.base_origin needs three values (m), got {self.base_origin!r}")
+        origin = _vector("base_origin", self.base_origin, "m")
         object.__setattr__(self, "base_origin",
                            tuple(check_length("MountGeometry.base_origin", v) for v in origin.tolist()))
         x, z = _direction("base_x_axis", self.base_x_axis), _direction("base_z_axis", self.base_z_axis)
@@ -109,13 +113,8 @@ class MountGeometry:
         object.__setattr__(self, "base_z_axis", tuple(z.tolist()))
         object.__setattr__(self, "link_width", check_length("MountGeometry.link_width", self.link_width, positive=True))
         if self.carm_base is not None:
-            try:
-                parts = tuple(tuple(float(v) for v in part) for part in self.carm_base)
-            except (TypeError, ValueError):
-                parts = ()
-            if len(parts) != 3 or any(len(part) != 3 for part in parts):
-                raise InvalidParameterError("MountGeometry.carm_base must be None or (origin, x axis, z axis), three "
-                                            f"3-vectors, got {self.carm_base!r:.80}")
+            parts = tuple(map(tuple, real_array(self.carm_base, "MountGeometry.carm_base (origin, x axis, z axis)",
+                                                (3, 3), unit="m; unit vectors").tolist()))
             object.__setattr__(self, "carm_base", parts)
         for joint in self.joints:
             if max(abs(v) for v in joint.point) > MAX_LENGTH:

@@ -19,6 +19,7 @@ from carmkin.errors import RenderingError
 from carmkin.extras import require
 from carmkin.imaging.projection import patient_pose
 from carmkin.transforms import check_rigid_transform
+from carmkin.validation import real_array
 
 #: HU of an inserted fiducial bead (steel-like; well above bone).
 FIDUCIAL_HU = 8000.0
@@ -52,9 +53,19 @@ class Volume:
         """World coordinates (3,) of the volume's centre (mm)."""
         return (self.affine @ np.r_[(np.array(self.hu.shape) - 1) / 2.0, 1.0])[:3]
 
-    def in_table(self, patient="HFS", origin=(0.0, 0.0, 0.0)) -> np.ndarray:
-        """Pose (4, 4) of the CT world frame (in m) in the table frame: centre at the patient origin."""
-        T_patient = patient_pose(patient, origin) if isinstance(patient, str) else check_rigid_transform(patient)
+    def in_table(self, patient="HFS", origin=None) -> np.ndarray:
+        """Pose (4, 4) of the CT world frame (in m) in the table frame: centre at the patient origin.
+
+        ``patient``: a Patient Position code (:func:`~carmkin.imaging.patient_pose`) or the patient frame's pose
+        (4, 4) in the table frame; ``origin`` (3,) m: the patient origin in the table frame (default: the
+        table origin for a code, the pose's own translation for a pose; given with a pose, it replaces that
+        translation: the pose's orientation, the CT's centre at ``origin``)."""
+        if isinstance(patient, str):
+            T_patient = patient_pose(patient, (0.0, 0.0, 0.0) if origin is None else origin)
+        else:
+            T_patient = check_rigid_transform(patient, "patient").copy()
+            if origin is not None:
+                T_patient[:3, 3] = real_array(origin, "origin", (3,), error=RenderingError, unit="m")
         T = np.eye(4)
         T[:3, :3] = RAS_TO_LPS
         T[:3, 3] = -RAS_TO_LPS @ self.centre / 1000.0  # mm → m

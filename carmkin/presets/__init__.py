@@ -310,10 +310,24 @@ def _merge(base: dict, override: dict) -> dict:
 
 
 def _get(section: dict, key: str, where: str):
+    """``section[key]``, or a :class:`PresetError` naming ``[where] key``: a key that changes the geometry has no
+    default unless docs/PRESETS.md states one (:data:`OPTIONAL_KEYS`)."""
     try:
         return section[key]
     except KeyError:
         raise PresetError(f"missing key [{where}] {key}") from None
+
+
+#: The keys a preset may leave out, each with the default docs/PRESETS.md states (dotted, as in
+#: :func:`preset_provenance`): every other key that the loader reads is required (``missing key [section] key``),
+#: so that an incomplete file never loads with a geometry of silent defaults. ``[calibration]`` (absent = 0),
+#: the accelerations of ``[motion]`` (absent = not known), ``principal_point_px`` (absent = the detector
+#: centre) and ``c_radius_mm`` (absent = the source to orbital axis distance) are optional as well;
+#: ``ceiling_height_mm`` is required with ``mount = "ceiling"`` (unused by a floor stand).
+OPTIONAL_KEYS = {"carm.a1_mm": 0.0, "carm.a2_mm": 0.0, "body.mount": BodyGeometry.mount}
+#: The keys of ``[body]`` that every preset gives (mm): the collision and visual primitives.
+BODY_KEYS = ("floor_height_mm", "cart_size_mm", "column_width_mm", "c_thickness_mm", "c_depth_mm",
+             "source_housing_mm", "detector_thickness_mm")
 
 
 def _range(section: dict, joint: str, scale: float, unit: str, where: str, name: str | None = None) -> JointRange:
@@ -328,8 +342,8 @@ def _carm(section: dict) -> CArmGeometry:
     return CArmGeometry(
         length_offset=_get(section, "length_offset_mm", "carm") * _MM,
         orbital_offset=_get(section, "orbital_offset_mm", "carm") * _MM,
-        a1=section.get("a1_mm", 0.0) * _MM,
-        a2=section.get("a2_mm", 0.0) * _MM,
+        a1=section.get("a1_mm", OPTIONAL_KEYS["carm.a1_mm"]) * _MM,
+        a2=section.get("a2_mm", OPTIONAL_KEYS["carm.a2_mm"]) * _MM,
         source_to_detector=_get(section, "source_to_detector_mm", "carm") * _MM,
         detector_width=_get(section, "detector_width_mm", "carm") * _MM,
         detector_height=_get(section, "detector_height_mm", "carm") * _MM,
@@ -341,12 +355,13 @@ def _carm(section: dict) -> CArmGeometry:
 
 
 def _setup(section: dict, carm: CArmGeometry) -> TableSetup:
-    if "table_origin_in_xray_mm" in section:
+    if any(key in section for key in _SETUP_FORMS[0]):
+        _get(section, "table_origin_in_xray_mm", "setup")
         T = kinematics.table_pose_from_xray(
             carm,
             np.asarray(section["table_origin_in_xray_mm"], float) * _MM,
-            section.get("table_x_axis_in_xray", (1.0, 0.0, 0.0)),
-            section.get("table_z_axis_in_xray", (0.0, 0.0, 1.0)),
+            _get(section, "table_x_axis_in_xray", "setup"),
+            _get(section, "table_z_axis_in_xray", "setup"),
         )
         return TableSetup.from_pose(T)
     deg = math.pi / 180
@@ -406,10 +421,10 @@ def _mount(section: dict, carm_base=None) -> MountGeometry:
         raise PresetError("[mount] needs its joints: one [mount.joints.<name>] table per joint, floor up")
     return MountGeometry(
         tuple(joints),
-        base_origin=_mm3(section.get("base_origin_in_table_mm", [0.0, 0.0, 0.0]), "base_origin_in_table_mm"),
-        base_x_axis=tuple(section.get("base_x_axis_in_table", (1.0, 0.0, 0.0))),
-        base_z_axis=tuple(section.get("base_z_axis_in_table", (0.0, 0.0, 1.0))),
-        link_width=section.get("link_width_mm", MountGeometry.link_width / _MM) * _MM, carm_base=carm_base)
+        base_origin=_mm3(_get(section, "base_origin_in_table_mm", "mount"), "base_origin_in_table_mm"),
+        base_x_axis=tuple(_get(section, "base_x_axis_in_table", "mount")),
+        base_z_axis=tuple(_get(section, "base_z_axis_in_table", "mount")),
+        link_width=_get(section, "link_width_mm", "mount") * _MM, carm_base=carm_base)
 
 
 def _mount_setup(section: dict, mount: MountGeometry) -> tuple[TableSetup, tuple]:
@@ -444,23 +459,30 @@ def _system(data: dict, default_name: str) -> CArmSystem:
         mount = _mount(mount_section, carm_base)
     else:
         setup = _setup(_get(data, "setup", "top level"), carm)
-    t = data.get("table", {})
-    table_defaults = TableGeometry()
+    t = _get(data, "table", "top level")
     table = TableGeometry(
         joints=_table_joints(t.get("joints", {})),
-        translation=_range(t, "translation", _MM, "mm", "table", "table_translation")
-        if "translation_min_mm" in t else table_defaults.translation,
-        top_size=_mm3(t["top_size_mm"], "top_size_mm") if "top_size_mm" in t else table_defaults.top_size,
-        top_center=_mm3(t["top_center_mm"], "top_center_mm") if "top_center_mm" in t else table_defaults.top_center,
+        translation=_range(t, "translation", _MM, "mm", "table", "table_translation"),
+        top_size=_mm3(_get(t, "top_size_mm", "table"), "top_size_mm"),
+        top_center=_mm3(_get(t, "top_center_mm", "table"), "top_center_mm"),
     )
-    body = BodyGeometry(**{key.removesuffix("_mm"): value if isinstance(value, str) else
-                           _mm3(value, key) if isinstance(value, list) else value * _MM
-                           for key, value in data.get("body", {}).items()})
+    body = _body(_get(data, "body", "top level"))
     system = CArmSystem(carm=carm, setup=setup, table=table, body=body, name=data.get("name", default_name),
                         mount=mount)
     if "calibration" in data:
         system = system.replace(calibration=_calibration(data["calibration"], system))
     return system.replace(motion=_motion(data["motion"], system)) if "motion" in data else system
+
+
+def _body(section: dict) -> BodyGeometry:
+    """``[body]``: every key of :data:`BODY_KEYS`, ``ceiling_height_mm`` with a ceiling mount, the optional
+    ``mount`` and ``c_radius_mm``."""
+    required = BODY_KEYS + (("ceiling_height_mm",) if section.get("mount") == "ceiling" else ())
+    for key in required:
+        _get(section, key, "body")
+    return BodyGeometry(**{key.removesuffix("_mm"): value if isinstance(value, str) else
+                           _mm3(value, key) if isinstance(value, list) else value * _MM
+                           for key, value in section.items()})
 
 
 def _calibration(section: dict, system: CArmSystem) -> Calibration:

@@ -63,6 +63,15 @@ class Between:
     those of ``world_a`` first); both worlds' systems in one table frame."""
 
     def __init__(self, world_a, world_b, links=BODY_LINKS) -> None:
+        from carmkin.validation import instance
+
+        from .world import World
+
+        for name, world in (("world_a", world_a), ("world_b", world_b)):
+            instance(world, World, name, error=CollisionSceneError, hint="carmkin.world.World(system, patient)")
+        if not isinstance(links, (list, tuple)) or not links or not all(isinstance(n, str) for n in links):
+            raise CollisionSceneError(f"Between: links must be a list of link names (e.g. {', '.join(BODY_LINKS[:2])}), "
+                                      f"got {links!r:.60}")
         self._sides = (_Side(world_a, links), _Side(world_b, links))
         a, b = self._sides
         if not a.index or not b.index:
@@ -133,9 +142,11 @@ class Between:
         return self.nearest(Q_a, Q_b)[0]
 
     def _q(self, q, side: int) -> np.ndarray:
+        from carmkin.validation import JOINT_VALUE_LIMIT, real_array
+
         model = self._sides[side].world.model
-        q = np.asarray(q, dtype=float)
-        if q.shape[-1:] != (model.nq,) or not np.all(np.isfinite(q)):
-            raise CollisionSceneError(f"q of world {'ab'[side]} must be finite with {model.nq} joints per row, got "
-                                      f"shape {q.shape}")
+        name = f"q of world {'ab'[side]}"
+        q = real_array(q, name, error=CollisionSceneError, limit=JOINT_VALUE_LIMIT, unit="m, rad")
+        if q.shape[-1:] != (model.nq,) or q.ndim > 2:
+            raise CollisionSceneError(f"{name} must be finite with {model.nq} joints per row, got shape {q.shape}")
         return q

@@ -220,10 +220,12 @@ class PairBounds:
         return out, which
 
     def _configurations(self, qs) -> np.ndarray:
-        qs = np.asarray(qs, dtype=float)
+        from carmkin.validation import JOINT_VALUE_LIMIT, real_array
+
+        qs = real_array(qs, "qs", error=InvalidConfigurationError, limit=JOINT_VALUE_LIMIT, unit="m, rad")
         if qs.ndim == 1:
             qs = qs[None]
-        if qs.ndim != 2 or qs.shape[1] != self.model.nq or not np.all(np.isfinite(qs)):
+        if qs.ndim != 2 or qs.shape[1] != self.model.nq:
             raise InvalidConfigurationError(
                 f"qs must be finite with shape (N, {self.model.nq}) (m, rad), got shape {qs.shape}")
         return qs

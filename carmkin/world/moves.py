@@ -43,7 +43,7 @@ def move_order(system, order: Sequence[str] | None = None, error=CollisionSceneE
     if order is None:
         named = [system.joint_names.index(n) for n in DEFAULT_ORDER if n in system.joint_names]
     else:
-        if isinstance(order, str) or not all(isinstance(n, str) for n in order):
+        if not isinstance(order, (list, tuple)) or not all(isinstance(n, str) for n in order):
             raise error(f"order must be a sequence of joint names, got {order!r}")
         unknown = [n for n in order if n not in system.joint_names]
         if unknown:

@@ -20,6 +20,7 @@ metres; points and normals in the table frame 0 (the root).
 from __future__ import annotations
 
 import functools
+import math
 import weakref
 from dataclasses import dataclass
 from typing import Sequence
@@ -27,8 +28,9 @@ from typing import Sequence
 import numpy as np
 import pinocchio as pin
 
-from carmkin.errors import CollisionSceneError, PatientModelError
+from carmkin.errors import CollisionSceneError, InvalidConfigurationError, PatientModelError
 from carmkin.model.system import require_system
+from carmkin.validation import JOINT_VALUE_LIMIT, flag, plain_floats, real_array
 
 from .obstacles import as_obstacles, carm_pair_names, link_of
 from .tolerances import DEFAULT_PATH_CLEARANCE, DEFAULT_TOLERANCE
@@ -51,6 +53,14 @@ class Proximity:
     point1: np.ndarray
     point2: np.ndarray
     normal: np.ndarray
+
+
+def _threshold(value, name: str) -> float:
+    """A distance threshold (m): a real number or ±inf (no NaN, bool, complex, string), or CollisionSceneError."""
+    number = float(real_array(value, name, (), error=CollisionSceneError, finite=False, limit=None, unit="m"))
+    if math.isnan(number):
+        raise CollisionSceneError(f"{name} must be a distance (m) or ±inf, got nan")
+    return number
 
 
 class World:
@@ -141,9 +151,11 @@ class World:
     def distances(self, data: pin.Data | None = None, q=None) -> np.ndarray:
         """Signed distance (m) of every pair (n_pairs,); pass ``q`` (nq,) to run forward kinematics first. The
         witness points stay in :attr:`geometry_data` for :meth:`proximity` until the next call."""
+        if data is not None and not isinstance(data, pin.Data):
+            raise CollisionSceneError(f"data must be a pinocchio.Data after forward kinematics, got {type(data).__name__}")
         if q is not None:
             data = data if data is not None else self._data
-            pin.forwardKinematics(self.model, data, np.asarray(q, dtype=float))
+            pin.forwardKinematics(self.model, data, self._q(q))
         if data is None:
             raise CollisionSceneError("distances() needs data after forward kinematics, or q")
         self.update(data)
@@ -155,14 +167,22 @@ class World:
     def pair_distances(self, q, pairs) -> np.ndarray:
         """Signed distances (m) of the pairs ``pairs`` (K,) (indices into :attr:`pairs`) at ``q`` (nq,): one
         forward-kinematics pass, coal on those pairs only (the others' witness points are left as they were)."""
-        pin.forwardKinematics(self.model, self._data, np.asarray(q, dtype=float))
+        pin.forwardKinematics(self.model, self._data, self._q(q))
         self.update(self._data)
         gm, gd = self.geometry_model, self.geometry_data
         return np.array([pin.computeDistance(gm, gd, k).min_distance for k in np.asarray(pairs).tolist()], dtype=float)
 
+    def _q(self, q, name: str = "q") -> np.ndarray:
+        """One configuration (nq,) in m and rad, or InvalidConfigurationError naming ``name`` (a plainly valid
+        float64 array passes by :func:`~carmkin.validation.plain_floats`: the swept and QP loops call this)."""
+        if type(q) is np.ndarray and plain_floats(q, self.model.nq, JOINT_VALUE_LIMIT) is not None:
+            return q
+        return real_array(q, name, (self.model.nq,), error=InvalidConfigurationError, limit=JOINT_VALUE_LIMIT,
+                          unit="m, rad")
+
     def grouped(self, q) -> dict[str, float]:
         """The exact smallest signed distance (m) at ``q`` (nq,) to each of :data:`GROUPS` present."""
-        d = self.distances(q=q)
+        d = self.distances(q=self._q(q))
         out = {group: np.inf for group in GROUPS}
         for value, group in zip(d.tolist(), self.group):
             if group in out:
@@ -209,12 +229,12 @@ class World:
         """(N,) the exact smallest signed distance (m) over the pairs of each configuration of ``Q`` (N, nq)
         (or one (nq,) configuration: shape (1,)); where it is at least ``exact_below``, a lower bound that is
         itself at least ``exact_below`` (enough to tell "clear of a margin")."""
-        return self.bounds.nearest(Q, exact_below)[0]
+        return self.bounds.nearest(Q, _threshold(exact_below, "exact_below"))[0]
 
     def nearest(self, Q, exact_below: float = np.inf, stop_below: float = -np.inf) -> tuple[np.ndarray, np.ndarray]:
         """``(distance (N,), pair (N,))``: :meth:`clearance` and the pair index that holds it (−1: no coal call);
         with ``stop_below``, the first pair found closer than it ends a configuration's search."""
-        return self.bounds.nearest(Q, exact_below, stop_below)
+        return self.bounds.nearest(Q, _threshold(exact_below, "exact_below"), _threshold(stop_below, "stop_below"))
 
     # --- segments and moves -------------------------------------------------------------------------------
     @functools.cached_property
@@ -231,7 +251,8 @@ class World:
         certified lower bound of the true minimum, within ``tolerance`` of it)."""
         from .swept import sweep
 
-        return sweep(self, q_a, q_b, margin, tolerance, stop_at_contact, path_min)
+        return sweep(self, q_a, q_b, margin, tolerance,
+                     flag(stop_at_contact, "stop_at_contact", error=CollisionSceneError), _threshold(path_min, "path_min"))
 
     def moves(self, q_from, q_to, order: Sequence[str] | None = None, clearance: float = DEFAULT_PATH_CLEARANCE):
         """Joint-by-joint moves from ``q_from`` to ``q_to`` (nq,): :func:`carmkin.world.moves.joint_moves`."""

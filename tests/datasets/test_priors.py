@@ -185,3 +185,37 @@ def test_wide_sd_rejects_secondary_angles_beyond_90_and_wraps_pa():
     assert np.all(np.abs(samples.secondary_deg) <= 90.0)
     pa = samples.rejections.statistics["pa"]["proposed"]
     assert abs(pa[0]) < 10.0 and 20.0 < pa[1] < 40.0
+
+
+def test_sweep_labels_are_unique_across_shards_and_every_sweep_whole():
+    """Issue 41: "sweep 4" held 22 rows of shards 0 and 3. Shards 0 and 3 of one seed (n a multiple of n_views):
+    no label shared, every label n_views consecutive rows, named by its shard."""
+    system = carmkin.load_preset("siremobile-iso-c3d")
+    patient = ParametricPatient.on_table(system)
+    views = 5
+    labels = {}
+    for shard in (0, 3):
+        samples = datasets.sample_poses(system, "sweep", 2 * views, seed=1, patient=patient, shard=shard,
+                                        n_views=views, arc_deg=60.0)
+        runs = [samples.labels[i:i + views] for i in range(0, len(samples), views)]
+        assert all(len(set(run)) == 1 for run in runs) and len({run[0] for run in runs}) == len(runs)
+        assert all(run[0].startswith(f"sweep {shard}.") for run in runs)
+        labels[shard] = set(samples.labels)
+    assert not labels[0] & labels[3]
+
+
+@pytest.mark.parametrize("n, shard_size, match", [
+    (100, 64, r"shard_size = 64 is no multiple of n_views = 50: a sweep would be cut at a shard boundary; use "
+              r"shard_size = 50 or 100"),
+    (120, 50, r"n = 120 is no multiple of n_views = 50: a sweep would be cut at the end; use n = 100 or 150"),
+])
+def test_a_sweep_dataset_refuses_sizes_that_cut_a_sweep(n, shard_size, match):
+    """Issue 41: sweeps were cut at shard boundaries. Refused before any work (before the extras are looked
+    for), naming the size and the nearest multiples."""
+    from carmkin.datasets import scale
+
+    system = carmkin.load_preset("siremobile-iso-c3d")
+    spec = datasets.Spec(system=system, prior="sweep", n=n, size="200x150", shard_size=shard_size)
+    with pytest.raises(DatasetError, match=match):
+        scale.check(spec)
+    datasets.priors.check_whole_groups("sweep", {"n_views": 10}, 120, 40)  # multiples: no error

@@ -70,6 +70,31 @@ def test_ct_is_placed_by_the_patient_frame():
         assert np.allclose(T[:3, :3] @ [-1.0, 0, 0], [left, 0, 0])
 
 
+def test_a_pose_and_an_origin_put_the_ct_centre_on_the_origin():
+    """Issue 41: with a 4×4 patient pose, ``origin`` was ignored (the dataset's chest CT sat on the patient's
+    reference point, 150 mm posterior of the target every view aims at). A pose and an origin: the CT's centre
+    voxel (index (shape − 1)/2 through the affine, not ``Volume.centre``) lands on the origin, the CT axes turn
+    as the pose's (RAS → LPS); a pose alone keeps its own translation; the CT's world bounding box (its eight
+    corner voxels) contains the origin."""
+    from carmkin.imaging import patient_pose
+
+    volume = small_volume()
+    pose = patient_pose("FFS", (0.05, -0.1, 0.2))
+    target = np.array([0.01, 0.13, -0.4])
+    T = volume.in_table(pose, target)
+    index = (np.array(volume.hu.shape) - 1) / 2.0
+    centre_mm = index @ volume.affine[:3, :3].T + volume.affine[:3, 3]
+    assert np.allclose(T[:3, :3] @ centre_mm / 1e3 + T[:3, 3], target, rtol=0, atol=1e-15)
+    assert np.allclose(T[:3, :3], pose[:3, :3] @ np.diag([-1.0, -1.0, 1.0]), rtol=0, atol=0)
+    alone = volume.in_table(pose)
+    assert np.allclose(alone[:3, :3] @ centre_mm / 1e3 + alone[:3, 3], pose[:3, 3], rtol=0, atol=1e-15)
+    corners = np.array([[i, j, k] for i in (0, 39) for j in (0, 39) for k in (0, 11)]) @ volume.affine[:3, :3].T
+    table = (corners + volume.affine[:3, 3]) / 1e3 @ T[:3, :3].T + T[:3, 3]
+    assert np.all(table.min(axis=0) <= target) and np.all(target <= table.max(axis=0))
+    with pytest.raises(drr.RenderingError, match="origin must be real numbers"):
+        volume.in_table(pose, "here")
+
+
 # --- rendering -----------------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def ct():

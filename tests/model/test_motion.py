@@ -13,6 +13,8 @@ from hypothesis import strategies as st
 import carmkin
 from carmkin.errors import CarmkinError, InvalidParameterError, MotionError
 from carmkin.model.motion import (
+    MAX_RATE,
+    MIN_RATE,
     NO_SPEEDS,
     Follow,
     JointMotion,
@@ -127,6 +129,46 @@ def test_velocity_profile_reaches_the_goal_within_the_limits(delta):
     assert np.allclose(v[0], 0) and np.allclose(v[-1], 0, atol=1e-9)
     displacement = np.trapezoid(v, t, axis=0) if hasattr(np, "trapezoid") else np.trapz(v, t, axis=0)
     assert np.allclose(displacement, q1 - q0, atol=1e-6 * max(1.0, T))
+
+
+#: Any speed or acceleration of the documented range [MIN_RATE, MAX_RATE] (log-uniform), and a move's distance.
+documented_rates = st.floats(math.log10(MIN_RATE), math.log10(MAX_RATE)).map(
+    lambda e: min(max(10.0 ** e, MIN_RATE), MAX_RATE))
+moves = st.floats(-10.0, 10.0).filter(lambda d: d == 0.0 or abs(d) > 1e-9)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.tuples(documented_rates, documented_rates | st.none(), moves), min_size=1, max_size=3)
+       .filter(lambda js: any(d != 0.0 for _, _, d in js)))
+def test_velocity_profile_over_the_documented_rates_stays_below_the_speeds_and_integrates_to_the_move(joints):
+    """Issue 41 (fuzz, MED): ½(aT − √((aT)² − 4ad)) lost the cruise speed to cancellation: peaks 1.4e-3 above
+    the speed limit and profiles 6.5 % off the move. Every joint: never above its speed (no tolerance), a
+    trapezoid of slope a whose area pT − p²/a (p its peak, in 50-digit decimals) is the move, and a trapezoidal
+    quadrature of the sampled profile within its error bound (2 kinks · peak · dt each) of the move."""
+    from decimal import Decimal, localcontext
+
+    motion = Motion.of([f"j{k}" for k in range(len(joints))], [v for v, _, _ in joints], [a for _, a, _ in joints])
+    q0, q1 = np.zeros(len(joints)), np.array([d for _, _, d in joints])
+    T = move_duration(motion, q0, q1).seconds
+    n = 20001
+    t = np.linspace(0.0, T, n)
+    profile = velocity_profile(motion, q0, q1, t)
+    peak = np.abs(velocity_profile(motion, q0, q1, [T / 2])[0])
+    for k, (speed, accel, d) in enumerate(joints):
+        assert np.all(np.abs(profile[:, k]) <= speed), (k, np.abs(profile[:, k]).max() / speed - 1)
+        assert peak[k] <= speed
+        assert np.all(np.sign(profile[:, k]) * np.sign(d) >= 0)
+        if d == 0.0:
+            assert not profile[:, k].any()
+            continue
+        with localcontext() as context:
+            context.prec = 50
+            p, TT = Decimal(float(peak[k])), Decimal(T)
+            area = p * TT - (p * p / Decimal(accel) if accel is not None else 0)
+            assert abs(float(area) - abs(d)) <= 1e-11 * abs(d), (float(area), d)
+        dt = T / (n - 1)
+        quadrature = abs(float(np.sum((profile[1:, k] + profile[:-1, k]) * 0.5) * dt))
+        assert abs(quadrature - abs(d)) <= 4 * peak[k] * dt + 1e-12 * abs(d)
 
 
 # --- the sweep speed check ------------------------------------------------------------------------------

@@ -83,19 +83,72 @@ def test_the_robotic_preset_orders_its_joints_table_mount_carm():
     for name in ("vertical", "wigwag", "horizontal", "angular"):
         k = ROBOT.joint_names.index(name)
         assert ROBOT.lower[k] == ROBOT.upper[k] == 0.0
-    # the KR 210 R3100-2's A2 range (ROS-Industrial URDF: -140°..-5°)
+    # the KR 210 R3100-2's A2 range (ROS-Industrial URDF: -140°..-5°) about the rest pose
     k = ROBOT.joint_names.index("robot_a2")
-    assert math.degrees(ROBOT.lower[k]) == pytest.approx(-140.0) and math.degrees(ROBOT.upper[k]) == pytest.approx(-5.0)
+    assert math.degrees(ROBOT.lower[k]) + KR210_REST_DEG[1] == pytest.approx(-140.0)
+    assert math.degrees(ROBOT.upper[k]) + KR210_REST_DEG[1] == pytest.approx(-5.0)
     q = ROBOT.mount_part(np.arange(12.0))
     np.testing.assert_array_equal(q, np.arange(1.0, 7.0))
 
 
 def test_at_rest_the_carm_base_sits_on_the_flange_as_the_preset_states():
-    """The setup derived from ``[mount] carm_base_*``: the C-arm base at rest is the flange (3340, 0, 760) mm of
+    """The setup derived from ``[mount] carm_base_*``: the C-arm base at rest is the flange (1200, 0, 1200) mm of
     the robot base, which stands at (-2200, 1200, 0) mm facing +X0 with Z_B up (= -Y0)."""
-    np.testing.assert_allclose(ROBOT.carm_base_pose[:3, 3], [-2.2 + 3.34, 1.2 - 0.76, 0.0], atol=1e-12)
+    np.testing.assert_allclose(ROBOT.carm_base_pose[:3, 3], [-2.2 + 1.2, 1.2 - 1.2, 0.0], atol=1e-12)
     np.testing.assert_allclose(ROBOT.carm_base_pose[:3, 2], [0.0, -1.0, 0.0], atol=1e-12)  # vertical axis up
     np.testing.assert_allclose(ROBOT.carm_base_pose[:3, 1], [1.0, 0.0, 0.0], atol=1e-12)  # the arm along A6
+
+
+#: The KR 210 R3100-2 as ROS-Industrial publishes it (kr210_r3100-2_macro.xacro): each joint's axis and a point
+#: of it (mm) in the robot base frame with every joint at the URDF's zero, and its limits (deg).
+KR210 = [((0, 0, -1), (0, 0, 645), (-185, 185)), ((0, 1, 0), (330, 0, 645), (-140, -5)),
+         ((0, 1, 0), (1680, 0, 645), (-120, 168)), ((-1, 0, 0), (3100, 0, 760), (-350, 350)),
+         ((0, 1, 0), (3100, 0, 760), (-122.5, 122.5)), ((-1, 0, 0), (3340, 0, 760), (-350, 350))]
+#: The preset's rest pose in the URDF's angles (deg, docs/PRESETS.md): the elbow folded up, the flange level.
+KR210_REST_DEG = (0.0, -118.69335120549698, 149.53378067020924, 0.0, -30.84042946471225, 0.0)
+
+
+def _kr210(theta) -> np.ndarray:
+    """G(θ) (4, 4) in the robot base frame by the URDF's twists at its zero, each e^{ξ̂ θ} by scipy's expm."""
+    from scipy.linalg import expm
+
+    out = np.eye(4)
+    for (axis, point, _), angle in zip(KR210, theta):
+        w, p = np.array(axis, float), np.array(point, float) / 1e3
+        xi = np.zeros((4, 4))
+        xi[:3, :3] = [[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]]
+        xi[:3, 3] = -np.cross(w, p)
+        out = out @ expm(xi * angle)
+    return out
+
+
+def test_the_robot_rests_in_range_with_the_isocentre_at_the_table_origin_as_the_urdf_moves_it():
+    """Issue 41: the URDF's zero (A2 = 0°) is outside A2's range, and at it the isocentre stood 2.1 m beyond the
+    table. The preset's twists are the URDF's carried to a rest pose in range: at every configuration the
+    preset's robot equals the URDF's at q + rest (an independent route: the xacro's numbers, scipy's expm); at
+    rest the URDF's flange lands where the preset puts the C-arm base; every joint's range is the URDF's less
+    its rest angle; the zero configuration is in range and puts the isocentre at the table origin."""
+    rest = np.radians(KR210_REST_DEG)
+    mount = [ROBOT.joint_names.index(f"robot_a{i}") for i in range(1, 7)]
+    flange = np.eye(4)
+    flange[:3, 3] = [3.34, 0.0, 0.76]  # the URDF's flange at its zero
+    at_rest = np.eye(4)
+    at_rest[:3, 3] = [1.2, 0.0, 1.2]  # the preset's carm_base_origin_mm, the flange's orientation unchanged
+    np.testing.assert_allclose(_kr210(rest) @ flange, at_rest, atol=1e-12)
+    T_0B = ROBOT.mount.base_pose
+    rng = np.random.default_rng(41)
+    worst = 0.0
+    for _ in range(500):
+        q = ROBOT.lower[mount] + rng.random(6) * (ROBOT.upper[mount] - ROBOT.lower[mount])
+        urdf = T_0B @ _kr210(q + rest) @ np.linalg.inv(_kr210(rest)) @ np.linalg.inv(T_0B)
+        worst = max(worst, float(np.abs(ROBOT.mount_motion(q) - urdf).max()))
+    assert worst <= 1e-12, worst
+    for k, (_, _, (low, high)) in zip(mount, KR210):
+        assert math.degrees(ROBOT.lower[k]) + KR210_REST_DEG[mount.index(k)] == pytest.approx(low, abs=1e-12)
+        assert math.degrees(ROBOT.upper[k]) + KR210_REST_DEG[mount.index(k)] == pytest.approx(high, abs=1e-12)
+    assert np.all(ROBOT.lower <= 0.0) and np.all(ROBOT.upper >= 0.0)
+    T = ROBOT.fk(np.zeros(ROBOT.nq))
+    np.testing.assert_allclose(T[:3, 3] + ROBOT.carm.source_to_orbital_axis * T[:3, 2], 0.0, atol=1e-12)
 
 
 def test_fk_agrees_with_pinocchio_over_10000_configurations_of_the_robotic_preset():
@@ -213,8 +266,9 @@ def _robot_text(old: str, new: str) -> str:
 @pytest.mark.parametrize(("old", "new", "message"), [
     ("axis = [0.0, 1.0, 0.0]           # source: kr210_r3100-2_macro.xacro joint_a2 axis",
      "axis = [0.0, 0.9, 0.0]", r"\[mount\.joints\.robot_a2\] axis must be a unit vector, got \[0\.0, 0\.9, 0\.0\]"),
-    ("min_deg = -140.0", "min_deg = 10.0", r"\[mount\.joints\.robot_a2\] min_deg = 10 deg > max_deg = -5 deg"),
-    ("min_deg = -140.0", "min_mm = -140.0",
+    ("min_deg = -21.30664879450302", "min_deg = 120.0",
+     r"\[mount\.joints\.robot_a2\] min_deg = 120 deg > max_deg = 113\.693 deg"),
+    ("min_deg = -21.30664879450302", "min_mm = -140.0",
      r"\[mount\.joints\.robot_a2\] needs min_deg and max_deg .* or min_mm and max_mm"),
     ("point_mm = [330.0, 0.0, 645.0]", "point_mm = [330.0, 0.0]", r"\[mount\.joints\.robot_a2\] point_mm must be a list of 3"),
     ("[mount.joints.robot_a2]", "[mount.joints.robot_a2]\nspeed_deg = 1.0", r"unknown key 'speed_deg' in \[mount\.joints\.robot_a2\]"),

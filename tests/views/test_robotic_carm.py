@@ -150,3 +150,15 @@ def test_the_cli_plans_a_view_of_the_robotic_preset(capsys):
     # the closed form's command refuses in one line, naming the mount (usage error: exit 2)
     assert main(["ik", "--preset", "robotic-carm", "--pose", "0,0,0,0,0,0"]) == 2
     assert "extra table and mount joints robot_a1" in capsys.readouterr().err
+
+
+def test_the_cli_sweep_runs_with_its_default_start(capsys):
+    """Issue 41: ``carmkin sweep plan --preset robotic-carm --arc-deg 190 --views 30`` exited 2 ("cannot be put on
+    the principal axis ... with the start orientation"): the default start was the zero configuration clipped
+    into A2's range, the isocentre far from the table. At rest the robot now holds the isocentre at the table
+    origin, inside every range."""
+    from carmkin.cli import main
+
+    assert np.all(ROBOT.lower <= 0.0) and np.all(ROBOT.upper >= 0.0)
+    assert main(["sweep", "plan", "--preset", "robotic-carm", "--arc-deg", "190", "--views", "30"]) == 0
+    assert "feasible" in capsys.readouterr().out
