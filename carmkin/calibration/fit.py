@@ -50,10 +50,10 @@ JACOBIAN_STEP = 1e-4
 #: scipy.optimize.least_squares's ftol, xtol and gtol: 1e-12, far below the 0.1 px noise of a real P.
 FIT_TOLERANCE = 1e-12
 #: A view is an outlier when the RMS of its leave-one-view-out residual exceeds 5 times the median over the
-#: views: for clean views these RMS scatter like the root of a chi-square with up to 11 degrees of freedom
-#: (the numbers of one P), so 5 times the median (25 times in squares) is beyond its 1e-5 quantile even with
-#: a single effective degree of freedom (chi-square_1: 25 × 0.455 = 11.4, tail 7e-4) only for a view whose
-#: noise all lies along one direction; a 20 px error against 0.1 px noise is 200 times.
+#: views (25 times in squares). For clean views the squared RMS scatters like a chi-square with up to 11
+#: degrees of freedom (the numbers of one P), whose 1e-5 quantile is 4.2 times its median; even with a single
+#: effective degree of freedom (all of a view's noise along one direction) 25 times the median (11.4) is
+#: exceeded with probability 7e-4. A 20 px error against 0.1 px noise is 200 times the median in RMS.
 OUTLIER_FACTOR = 5.0
 #: No view is an outlier below this RMS leave-one-view-out residual (px): 0.01 px, a thirtieth of the best
 #: measured P's reprojection error (0.33 px, Table 2.1), so that noise-free views are never flagged on round-off.

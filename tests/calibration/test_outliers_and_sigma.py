@@ -59,7 +59,8 @@ def test_one_view_off_by_20_px_is_named_and_does_not_bias_the_rest(seed):
     bias = np.abs(robust.values - clean.values) / clean.std
     naive_bias = np.abs(naive.values - clean.values) / clean.std
     print(f"\nseed {seed}: view {view} off by {OUTLIER_PX} px: flagged {robust.outliers}; bias median "
-          f"{np.median(bias):.2f} max {bias.max():.2f} clean sigma (without the test: median {np.median(naive_bias):.1f})")
+          f"{np.median(bias):.2f} max {bias.max():.2f} clean sigma (without the test: median "
+          f"{np.median(naive_bias):.1f})")
     assert clean.outliers == () and robust.outliers == (view,)
     assert robust.names == clean.names
     assert bias.max() <= BIAS_SIGMAS
@@ -118,9 +119,10 @@ def test_reported_sigma_cover_95_percent_with_default_points_on_a_helix_phantom(
     tolerance = 3 * math.sqrt(COVERAGE_2SIGMA * (1 - COVERAGE_2SIGMA) / len(z))
     bound = chi2.ppf(0.999, len(z))
     print(f"\nhelix phantom, default points, {COVERAGE_REPEATS} x 30 views: within 2 sigma {coverage:.1%} "
-          f"(bound {COVERAGE_2SIGMA - tolerance:.1%}), worst parameter {worst:.0%}, mean z^2 {np.mean(z**2):.2f}, sum of Mahalanobis^2 "
-          f"{d2:.0f} (chi2_{len(z)} 0.999 quantile {bound:.0f}); model-only covariance: within 2 sigma "
-          f"{coverage_model:.1%}, worst parameter {worst_model:.0%}, mean z^2 {np.mean(z_model**2):.2f}, sum of Mahalanobis^2 {d2_model:.0f}")
+          f"(bound {COVERAGE_2SIGMA - tolerance:.1%}), worst parameter {worst:.0%}, mean z^2 {np.mean(z**2):.2f}, "
+          f"sum of Mahalanobis^2 {d2:.0f} (chi2_{len(z)} 0.999 quantile {bound:.0f}); model-only covariance: "
+          f"within 2 sigma {coverage_model:.1%}, worst parameter {worst_model:.0%}, mean z^2 "
+          f"{np.mean(z_model**2):.2f}, sum of Mahalanobis^2 {d2_model:.0f}")
     assert coverage >= COVERAGE_2SIGMA - tolerance
     assert worst >= WORST_PARAMETER_COVERAGE
     assert worst_model < WORST_PARAMETER_COVERAGE  # the failure the test guards against (σ before issue 41)
