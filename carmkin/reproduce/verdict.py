@@ -41,6 +41,7 @@ runs above 1 % (binomial).
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from dataclasses import dataclass
@@ -345,6 +346,46 @@ def verdict(system, model: ErrorModel, repeats: int = 8, experiments=tuple(EXPER
             isinstance(name, str) and name in EXPERIMENTS for name in experiments):
         raise SimulationError(f"experiments must be names of {', '.join(EXPERIMENTS)}, got {experiments!r:.80}")
     return [row for name in experiments for row in EXPERIMENTS[name](system, model, repeats)]
+
+
+def across(rows_by_point) -> list[Row]:
+    """The rows of the first point (the best fit), each verdict kept only when every other point of the fit's
+    95 % region gives the same verdict for that row; otherwise "undetermined", the criterion naming the
+    verdicts per point. ``rows_by_point``: a list of row lists, one per point, the same rows in the same order."""
+    if not isinstance(rows_by_point, (list, tuple)) or not rows_by_point or not all(
+            isinstance(rows, (list, tuple)) and all(isinstance(r, Row) for r in rows) for rows in rows_by_point):
+        raise SimulationError("rows_by_point must be a non-empty list of lists of Row, one per point of the region")
+    best = rows_by_point[0]
+    if any([(r.experiment, r.quantity) for r in rows] != [(r.experiment, r.quantity) for r in best]
+           for rows in rows_by_point):
+        raise SimulationError("rows_by_point: every point must give the same rows in the same order")
+    out = []
+    for i, row in enumerate(best):
+        verdicts = [rows[i].verdict for rows in rows_by_point]
+        if len(set(verdicts)) == 1:
+            out.append(row)
+        else:
+            out.append(dataclasses.replace(row, verdict="undetermined", criterion=(
+                f"{row.criterion}; across the fit's 95 % region: {', '.join(verdicts)}")))
+    return out
+
+
+def verdict_over_region(system, models, repeats: int = 8, experiments=tuple(EXPERIMENTS)) -> list[Row]:
+    """:func:`verdict` under each of ``models`` (the best fit first, then the other points of its 95 % region:
+    :func:`region_models`), combined by :func:`across`: a verdict holds only where it holds at every point."""
+    if not isinstance(models, (list, tuple)) or not models or not all(isinstance(m, ErrorModel) for m in models):
+        raise SimulationError("models must be a non-empty list of ErrorModel, the best fit first")
+    return across([verdict(system, model, repeats, experiments) for model in models])
+
+
+def region_models(base: ErrorModel, region=None) -> list[ErrorModel]:
+    """``base`` at each (corner noise px, operator scale) of ``region`` (default :data:`.fit.FIT_REGION`)."""
+    from .fit import FIT_REGION
+
+    if not isinstance(base, ErrorModel):
+        raise SimulationError(f"base must be an ErrorModel, got {type(base).__name__}")
+    points = real_array(FIT_REGION if region is None else region, "region", (None, 2), error=SimulationError)
+    return [base.replace(corner_noise_px=float(c)).with_operator_scale(float(s)) for c, s in points]
 
 
 def counts(rows: list[Row]) -> dict:

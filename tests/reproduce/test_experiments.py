@@ -253,3 +253,33 @@ def test_the_two_readings_of_the_rotational_error():
     assert [a[2] for a in angle] == [math.degrees(t.rotation_angle) for t in tasks]
     with pytest.raises(SimulationError, match="rotation"):
         fit.task_values(tasks, "euler")
+
+
+def test_a_verdict_holds_only_where_it_holds_across_the_fits_region():
+    """Issue 41: a row keeps its verdict when every point of the 95 % region agrees, else it is undetermined."""
+    tight = [14.0, 15.0, 15.5, 16.0, 16.5, 17.0, 17.5, 18.0]
+    best = [verdict.judge("x", "a", 16.0, tight, scale="ratio"), verdict.judge("x", "b", 16.0, tight, scale="ratio")]
+    other = [verdict.judge("x", "a", 16.0, [t * 1.05 for t in tight], scale="ratio"),
+             verdict.judge("x", "b", 16.0, [t * 4 for t in tight], scale="ratio")]
+    assert [r.verdict for r in best] == ["reproduced", "reproduced"]
+    assert [r.verdict for r in other] == ["reproduced", "not reproduced"]
+    combined = verdict.across([best, other])
+    assert [r.verdict for r in combined] == ["reproduced", "undetermined"]
+    assert "across the fit's 95 % region: reproduced, not reproduced" in combined[1].criterion
+    assert combined[0] == best[0] and combined[1].simulated == best[1].simulated
+    with pytest.raises(SimulationError, match="same rows"):
+        verdict.across([best, other[:1]])
+    with pytest.raises(SimulationError, match="rows_by_point"):
+        verdict.across([])
+
+
+def test_the_region_models_are_the_fits_starred_points():
+    models = verdict.region_models(ErrorModel())
+    assert [m.corner_noise_px for m in models] == [p[0] for p in fit.FIT_REGION]
+    assert fit.FIT_REGION[0] == fit.BEST_FIT
+    reference = ErrorModel().with_operator_scale(fit.FIT_REGION[1][1])
+    assert models[1].operator_translation == reference.operator_translation
+    rows = verdict.verdict_over_region(SYSTEM, models[:2], repeats=2, experiments="3.2")
+    assert len(rows) == 12 and all(r.verdict in verdict.VERDICTS for r in rows)
+    with pytest.raises(SimulationError, match="models"):
+        verdict.verdict_over_region(SYSTEM, [], repeats=2)
