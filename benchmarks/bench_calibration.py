@@ -29,6 +29,8 @@ from carmkin import calibration as cal
 MAX_SIGMAS = 3.0
 #: The simulated noise (px per pixel coordinate).
 NOISE_PX = 0.1
+#: Issue 41's outlier: one view's P moved by this many pixels along u.
+OUTLIER_PX = 20.0
 #: The parameters no set of views separates from a joint zero offset (held in every calibration).
 STRUCTURAL = {"length_offset", "gamma3", "D2", "D3"}
 
@@ -83,6 +85,15 @@ def main() -> int:
         check(set(few.unidentifiable) >= STRUCTURAL and all(h.separation < cal.MIN_SINGULAR_VALUE
                                                             for h in few.identifiability.held),
               f"{label}: the report names the unidentifiable parameters")
+    # issue 41: one view's P off by 20 px is named and left out; the rest moves by less than 2 clean sigma
+    bad = P.copy()
+    bad[7, 0] = bad[7, 0] + OUTLIER_PX * bad[7, 2]  # u' = u + 20 px at every point
+    robust = cal.identify(system, Q, bad)
+    naive = cal.identify(system, Q, bad, reject_outliers=False)
+    bias, naive_bias = (np.abs(r.values - result.values) / result.std for r in (robust, naive))
+    print(f"view 7 off by {OUTLIER_PX:g} px: outliers {robust.outliers}; bias median {np.median(bias):.2f}, max "
+          f"{bias.max():.2f} clean sigma (without the outlier test: median {np.median(naive_bias):.1f})")
+    check(robust.outliers == (7,) and bias.max() <= 2.0, "the 20 px view is named and biases nothing beyond 2 sigma")
     return 1 if failures else 0
 
 

@@ -5,6 +5,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 from carmkin.errors import CalibrationError
@@ -43,6 +44,8 @@ def preset_text(result) -> str:
 
 def save_calibrated_preset(result, path) -> Path:
     """Write :func:`preset_text` to ``path`` (``*.toml``)."""
+    if not isinstance(path, (str, os.PathLike)):
+        raise CalibrationError(f"path must be a file path ending in .toml, got {type(path).__name__} {path!r:.80}")
     path = Path(path)
     if path.suffix != ".toml":
         raise CalibrationError(f"path must end in .toml, got {str(path)!r}")

@@ -32,8 +32,8 @@ import numpy as np
 
 from carmkin.errors import CalibrationError
 from carmkin.model.calibration import Calibration
-from carmkin.model.system import CArmSystem
-from carmkin.validation import real_array
+from carmkin.model.system import CArmSystem, require_system
+from carmkin.validation import real_scalar
 
 #: One millimetre in metres, one degree in radians: the units people read.
 MM, DEG = 1e-3, math.pi / 180
@@ -53,6 +53,7 @@ class Parameter:
 
 def parameters(system: CArmSystem) -> tuple[Parameter, ...]:
     """Every parameter of ``system`` (any nq), in priority order (see the module docstring)."""
+    require_system(system, CalibrationError)
     joints = tuple(Parameter(f"{name}_zero_offset", "mm" if prismatic else "deg", "joint zero offset")
                    for name, prismatic in zip(system.joint_names, system.prismatic))
     imaging = (Parameter("source_to_detector", "mm", "imaging"), Parameter("principal_point_u", "px", "imaging"),
@@ -74,6 +75,8 @@ def select(system: CArmSystem, names=None) -> tuple[Parameter, ...]:
     names = list(names)
     by_name = {p.name: p for p in every}
     for name in names:
+        if not isinstance(name, str):
+            raise CalibrationError(f"parameters must be parameter names (text), got {name!r:.80}")
         if name not in by_name:
             hint = difflib.get_close_matches(str(name), list(by_name), n=1)
             raise CalibrationError(f"parameters: unknown parameter {name!r}"
@@ -84,7 +87,9 @@ def select(system: CArmSystem, names=None) -> tuple[Parameter, ...]:
 
 
 def values(system: CArmSystem, params) -> np.ndarray:
-    """The values of ``params`` in ``system`` (mm, deg, px as each parameter's unit)."""
+    """The values of ``params`` (:class:`Parameter` s of ``system``, e.g. from :func:`parameters`) in ``system``
+    (mm, deg, px as each parameter's unit); CalibrationError naming an argument that is not one."""
+    params = _own(system, params)
     carm, setup, calibration = system.carm, system.setup, system.calibration
     offsets = calibration.offsets(system.nq)
     u0, v0 = carm.intrinsics()[:2, 2]
@@ -96,6 +101,20 @@ def values(system: CArmSystem, params) -> np.ndarray:
              **{f"{name}_zero_offset": offset / (MM if prismatic else DEG)
                 for name, prismatic, offset in zip(system.joint_names, system.prismatic, offsets)}}
     return np.array([known[p.name] for p in params])
+
+
+def _own(system, params) -> tuple[Parameter, ...]:
+    """``params`` as a tuple of :class:`Parameter` s of ``system``, or CalibrationError naming ``params``."""
+    every = parameters(system)
+    if isinstance(params, (str, bytes, Parameter)) or not hasattr(params, "__iter__"):
+        raise CalibrationError(f"params must be a sequence of carmkin.calibration.Parameter (from parameters("
+                               f"system)), got {params!r:.80}")
+    params = tuple(params)
+    for p in params:
+        if not isinstance(p, Parameter) or p not in every:
+            raise CalibrationError(f"params: {p!r:.80} is not a parameter of this system; see "
+                                   "carmkin.calibration.parameters(system)")
+    return params
 
 
 def with_values(system: CArmSystem, params, x) -> CArmSystem:
@@ -121,8 +140,10 @@ def with_values(system: CArmSystem, params, x) -> CArmSystem:
 def adjust(system: CArmSystem, changes: dict) -> CArmSystem:
     """``system`` with parameters moved by the given amounts, e.g. ``adjust(system, {"orbital_zero_offset":
     0.3, "a1": 2.0})`` (deg, mm; each parameter's unit): the known perturbation of a simulated device."""
+    require_system(system, CalibrationError)
     if not isinstance(changes, dict):
         raise CalibrationError(f"changes must be a dict {{parameter name: amount}}, got {changes!r:.80}")
     params = select(system, list(changes))
-    amounts = real_array([changes[p.name] for p in params], "changes (mm, deg, px)", error=CalibrationError)
+    amounts = np.array([real_scalar(changes[p.name], f"changes[{p.name!r}] ({p.unit})", error=CalibrationError)
+                        for p in params])
     return with_values(system, params, values(system, params) + amounts)

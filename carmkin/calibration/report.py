@@ -10,7 +10,8 @@ from .identifiability import Reason
 
 def render(result) -> str:
     """Lines: one per fitted parameter (estimate, change from nominal, 1σ), one per held parameter, then the
-    residual (RMS per view before and after, the noise it implies)."""
+    residual (RMS per view before and after, the noise it implies), then one per caution (outlier views left
+    out, joints the views do not move)."""
     lines = [f"fitted {len(result.names)} parameters from {len(result.residual_px)} views "
              f"({'converged' if result.success else 'NOT converged: ' + result.message})"]
     for name, unit, value, start, std in zip(result.names, result.units, result.values, result.nominal_values,
@@ -22,6 +23,7 @@ def render(result) -> str:
     lines.append(f"residual per view (RMS over its reference points): nominal {np.median(result.residual_before_px):.3g} px"
                  f" median, fitted {np.median(result.residual_px):.3g} px median, {result.residual_px.max():.3g} px max;"
                  f" noise implied s = {result.noise_px:.3g} px ({result.dof} degrees of freedom)")
+    lines.extend(f"caution ({warning.kind.value}): {warning.message}" for warning in result.warnings)
     return "\n".join(lines)
 
 

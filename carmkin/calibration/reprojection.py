@@ -13,23 +13,39 @@ from __future__ import annotations
 
 import numpy as np
 
+from carmkin.errors import CalibrationError
 from carmkin.imaging.projection import projection_matrices
-from carmkin.model.system import CArmSystem
+from carmkin.model.system import CArmSystem, require_system
+from carmkin.validation import real_array
 
 #: Edge of the cube of default reference points (m): 200 mm, about a calibration phantom around the isocentre.
 REFERENCE_CUBE = 0.2
 #: Points per edge of the default grid (3 × 3 × 3 = 27 points).
 REFERENCE_GRID = 3
+#: Fewest reference points per view: 6 points in general position fix the 11 numbers of a P.
+MIN_POINTS = 6
+
+
+def checked_readings(system, readings) -> np.ndarray:
+    """``system`` checked and ``readings`` as finite joint readings (N, nq) (m, rad), or
+    :class:`~carmkin.errors.CalibrationError` naming the argument."""
+    require_system(system, CalibrationError)
+    Q = real_array(readings, "q (joint readings)", error=CalibrationError, unit="m, rad")
+    if Q.ndim != 2 or Q.shape[1] != system.nq:
+        raise CalibrationError(f"q (joint readings) must have shape (N, {system.nq}), one row per view, got {Q.shape}")
+    return Q
 
 
 def model_projections(system: CArmSystem, readings: np.ndarray) -> np.ndarray:
     """Projection matrices (N, 3, 4) of joint readings (N, nq): the model joint values ``readings + zero
     offsets`` through the FK and the calibrated detector (:func:`carmkin.imaging.projection_matrices`)."""
+    readings = checked_readings(system, readings)
     return projection_matrices(system, system.calibration.model_joints(readings))
 
 
 def reference_points(system: CArmSystem, readings: np.ndarray) -> np.ndarray:
     """The default reference points (N, 27, 3) (m, table frame) of joint readings (N, nq)."""
+    readings = checked_readings(system, readings)
     T = system.fk(system.calibration.model_joints(readings))
     centres = T[:, :3, 3] + system.carm.source_to_orbital_axis * T[:, :3, 2]
     steps = np.linspace(-REFERENCE_CUBE / 2, REFERENCE_CUBE / 2, REFERENCE_GRID)

@@ -10,9 +10,9 @@ import numpy as np
 
 from carmkin.errors import CalibrationError
 from carmkin.model.system import CArmSystem, require_system
-from carmkin.validation import integer, real_array, real_scalar
+from carmkin.validation import integer, pixel_array, point_array, real_array, real_scalar
 
-from .reprojection import model_projections, pixels, reference_points
+from .reprojection import MIN_POINTS, checked_readings, model_projections, pixels, reference_points
 
 #: A device off its nominal model by a few mm, tenths of a degree and pixels (each parameter's unit), for the
 #: acceptance check, the docs and the notebook; it leaves alone the four parameters no set of views separates
@@ -40,6 +40,9 @@ def spread_readings(system: CArmSystem, n: int, seed: int = 0, joints=None) -> n
     if joints is not None:
         if isinstance(joints, str) or not hasattr(joints, "__iter__"):
             raise CalibrationError(f"joints must be a list of joint names, got {joints!r:.80}")
+        joints = list(joints)
+        if not all(isinstance(j, str) for j in joints):
+            raise CalibrationError(f"joints must be joint names (text), got {joints!r:.80}")
         unknown = [j for j in joints if j not in system.joint_names]
         if unknown:
             raise CalibrationError(f"joints: unknown joint(s) {unknown}; joints: {', '.join(system.joint_names)}")
@@ -51,10 +54,7 @@ def measured_projections(system: CArmSystem, q, noise_px: float = 0.1, seed: int
     """Simulated measured P (N, 3, 4) of ``system`` (the "true" device, e.g. :func:`.quantities.adjust` of a
     preset) at joint readings ``q`` (N, nq); ``points`` (N, M, 3) m (default: the reference points of
     ``system``); noise σ = ``noise_px`` per pixel coordinate, from ``numpy.random.default_rng(seed)``."""
-    require_system(system, CalibrationError)
-    Q = real_array(q, "q (joint readings)", error=CalibrationError, unit="m, rad")
-    if Q.ndim != 2 or Q.shape[1] != system.nq:
-        raise CalibrationError(f"q (joint readings) must have shape (N, {system.nq}), got {Q.shape}")
+    Q = checked_readings(system, q)
     noise = real_scalar(noise_px, "noise_px", error=CalibrationError, low=0.0, unit="px")
     seed = integer(seed, "seed", low=0, error=CalibrationError)
     X = reference_points(system, Q) if points is None else real_array(points, "points", (len(Q), None, 3),
@@ -65,9 +65,15 @@ def measured_projections(system: CArmSystem, q, noise_px: float = 0.1, seed: int
 
 
 def estimate_projection(X: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """P (3, 4) from points X (M, 3) and their pixels x (M, 2), M ≥ 6: normalised DLT, then Levenberg–Marquardt
-    on the reprojection error; scaled to ``||P[2, :3]|| = 1``."""
+    """P (3, 4) from points X (M, 3) (m) and their pixels x (M, 2) (px), M ≥ 6: normalised DLT, then
+    Levenberg–Marquardt on the reprojection error; scaled to ``||P[2, :3]|| = 1``. CalibrationError naming X
+    or x when they are not finite, mis-shaped, fewer than 6 or of different counts."""
     from scipy.optimize import least_squares
+
+    X = point_array(X, "X (reference points)", error=CalibrationError, min_count=MIN_POINTS)
+    x = pixel_array(x, "x (their pixels)", error=CalibrationError, min_count=MIN_POINTS)
+    if len(x) != len(X):
+        raise CalibrationError(f"X has {len(X)} points but x has {len(x)} pixels: need one pixel per point")
 
     def normaliser(points):
         centre = points.mean(axis=0)

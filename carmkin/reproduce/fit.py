@@ -229,3 +229,6 @@ def plot_fit(result: Fit):
 #: operator scale. The default model of ``carmkin reproduce``. Its verdict: not reproduced (χ² 18.4,
 #: p = 0.001, the image error's mean 3.0 σ off).
 BEST_FIT = (0.5, 0.2)
+#: The 95 % region of that fit (the starred points of the same grid, Δχ² ≤ 5.99 from the best): (corner noise
+#: px, operator scale), the best fit first. :func:`carmkin.reproduce.verdict.verdict_over_region` judges over it.
+FIT_REGION = ((0.5, 0.2), (0.5, 0.4), (1.0, 0.02))
