@@ -33,6 +33,11 @@ SLOW = (
     "test_singularity.py::test_distance_is_the_joint_move_that_reaches_the_set",
     "model/test_kinematics.py::test_expanded_closed_form_equals_the_dh_product_and_pinocchio",
     "reposition/test_pose_degenerate.py::test_acceptance_degenerate_boards_right_or_refused",
+    # issue 37: dense exact checks of planned motions (each 5-60 s)
+    "motion/test_certificate.py::",
+    "motion/test_motion_plan.py::test_every_family_plans_between_random_clear_configurations",
+    "motion/test_motion_plan.py::test_a_blocked_line_is_planned_around_and_certified",
+    "motion/test_biplane_motion.py::test_a_standard_pair",
 )
 
 
