@@ -28,7 +28,6 @@ from carmkin.errors import MotionPlanError
 from carmkin.validation import JOINT_VALUE_LIMIT, real_array, real_scalar
 from carmkin.world import DEFAULT_MARGIN, World
 from carmkin.world.moves import greedy_moves, move_order
-from carmkin.world.obstacles import link_of
 
 from .scene import scene_of
 from .search import PLANNERS, Checks, search, shortcut
