@@ -138,7 +138,8 @@ ALIASES = {
 LEAVES = parsers()
 #: What the commands with required arguments need besides (parsed only: the tests stop before any work).
 REQUIRED = {"dataset generate": ["--prior", "sweep", "--n", "1", "--size", "40x30", "--out", "never-made"],
-            "dataset info": ["never-made"], "views optimal": ["--centreline", "never-read.csv"]}
+            "dataset info": ["never-made"], "views optimal": ["--centreline", "never-read.csv"],
+            "dose map": ["--rdsr", "never-read.dcm"], "move plan": ["--to-view", "ap"]}
 
 
 def visible_options(parser) -> dict[str, argparse.Action]:
