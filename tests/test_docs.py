@@ -200,3 +200,24 @@ def test_console_blocks_print_what_the_docs_show(where, command, promised, tmp_p
 
 def test_there_are_console_blocks_in_the_docs():
     assert len(console_blocks()) >= 6
+
+
+# --- CI runs each README command with what that command installs -----------------------------------------------
+#: A README command that installs an extra and runs something with it: ``python -m pip install -e ".[x]" && ...``.
+README_INSTALL = re.compile(r'^python -m pip install -e "\.\[(\w+)\]" && .+$', re.M)
+
+
+def test_ci_runs_each_readme_command_of_an_extra_in_a_fresh_venv_with_only_that_extra():
+    """The README's test and docs commands pass on a fresh machine with what each installs: .ci/run runs each
+    exactly as written in its own fresh virtual environment, before anything else is installed into it."""
+    ci = (ROOT / ".ci" / "run").read_text()
+    commands = README_INSTALL.findall(README.read_text())
+    assert {"test", "docs"} <= set(commands)
+    for match in README_INSTALL.finditer(README.read_text()):
+        command, extra = match.group(0), match.group(1)
+        run = re.search(rf"\n    {re.escape(command)}(?: 2>&1 \| tee \S+)?\n", ci)  # its output may be logged too
+        assert run, f".ci/run does not run the README's `{command}` as written"
+        before = ci[:run.start()]
+        fresh = before.rindex("python3 -m venv")
+        installs = re.findall(r"pip install (?!-q --upgrade pip)[^\n]*", before[fresh:])
+        assert not installs, f"`{command}` runs in a virtual environment that already has {installs}"
