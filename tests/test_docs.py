@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hang import HANG_GUARD_S
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
@@ -192,7 +193,7 @@ def test_console_blocks_print_what_the_docs_show(where, command, promised, tmp_p
     stdout and stderr together, as a terminal shows them (progress bars off)."""
     env = {**os.environ, "TQDM_DISABLE": "1", "COLUMNS": "120"}
     done = subprocess.run([sys.executable, "-m", "carmkin.cli", *shlex.split(command)[1:]], cwd=tmp_path, env=env,
-                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=120)
+                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=HANG_GUARD_S)
     printed = done.stdout.splitlines()
     assert output_matches(printed, promised), (
         f"{where}: `{command}` printed\n" + "\n".join(printed) + "\n\nbut the docs show\n" + "\n".join(promised))

@@ -14,6 +14,7 @@ import time
 import pytest
 
 from carmkin.commands._progress import Heartbeat
+from hang import HANG_GUARD_S
 
 
 class Terminal(io.StringIO):
@@ -24,7 +25,7 @@ class Terminal(io.StringIO):
 def test_the_heartbeat_shows_after_its_delay_and_erases_itself():
     stream = Terminal()
     with Heartbeat("carmkin demo", stream=stream, delay=0.05, refresh=0.02):
-        deadline = time.monotonic() + 10
+        deadline = time.monotonic() + HANG_GUARD_S
         while "working" not in stream.getvalue() and time.monotonic() < deadline:
             time.sleep(0.01)
     text = stream.getvalue()
@@ -35,7 +36,7 @@ def test_the_heartbeat_shows_after_its_delay_and_erases_itself():
 def test_a_printed_line_erases_the_heartbeat_first(capsys):
     stream = Terminal()
     with Heartbeat("carmkin demo", stream=stream, delay=0.0, refresh=0.01):
-        deadline = time.monotonic() + 10
+        deadline = time.monotonic() + HANG_GUARD_S
         while "working" not in stream.getvalue() and time.monotonic() < deadline:
             time.sleep(0.01)
         before = len(stream.getvalue())
@@ -68,7 +69,7 @@ def test_a_long_command_shows_progress_on_a_terminal():
                 except OSError:
                     break
     finally:
-        process.wait(timeout=120)
+        process.wait(timeout=HANG_GUARD_S)
         os.close(master)
     assert process.returncode == 0
     assert b"carmkin reposition experiment: working" in seen
@@ -76,5 +77,5 @@ def test_a_long_command_shows_progress_on_a_terminal():
 
 def test_redirected_stderr_gets_no_progress_frames():
     done = subprocess.run([sys.executable, "-m", "carmkin.cli", "verify", "--samples", "3000"], capture_output=True,
-                          text=True, timeout=300, env={k: v for k, v in os.environ.items() if k != "TQDM_DISABLE"})
+                          text=True, timeout=HANG_GUARD_S, env={k: v for k, v in os.environ.items() if k != "TQDM_DISABLE"})
     assert done.returncode == 0 and done.stderr == ""

@@ -7,11 +7,12 @@ import sys
 import pytest
 
 from carmkin.cli import main
+from hang import HANG_GUARD_S
 
 
 def run(*args):
     return subprocess.run([sys.executable, "-m", "carmkin.cli", "views", *args], capture_output=True, text=True,
-                          timeout=300)
+                          timeout=HANG_GUARD_S)
 
 
 def test_plan_prints_joints_and_clearance(capsys):
