@@ -43,6 +43,31 @@ DEG_PER_RAD = 180.0 / math.pi
 JOINTS_METAVAR = "V1,...,VN"
 
 
+def _default_margin_mm() -> float:
+    """:data:`carmkin.DEFAULT_MARGIN` in mm, read from ``carmkin/world/tolerances.py`` itself (the one place it is
+    stated): importing the package ``carmkin.world`` loads coal, which ``carmkin --help`` must not."""
+    import importlib.util
+
+    path = Path(__file__).resolve().parents[1] / "world" / "tolerances.py"
+    spec = importlib.util.spec_from_file_location("_carmkin_cli_tolerances", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return float(module.DEFAULT_MARGIN) * MM_PER_M
+
+
+#: The one default clearance margin (:data:`carmkin.DEFAULT_MARGIN`) in mm: the default of every planner's
+#: ``--margin-mm`` (views, sweeps, the biplane), as of the library's planners.
+DEFAULT_MARGIN_MM = _default_margin_mm()
+
+
+def add_margin_argument(parser: argparse.ArgumentParser,
+                        what: str = "clearance every moving part keeps from table, floor and patient") -> None:
+    """Add ``--margin-mm`` (``args.margin_mm``, mm), defaulting to :data:`DEFAULT_MARGIN_MM`."""
+    parser.add_argument("--margin-mm", type=number(0.0, 1000.0, unit="mm"), default=DEFAULT_MARGIN_MM,
+                        help=f"{what} (mm, default {DEFAULT_MARGIN_MM:g}: carmkin.DEFAULT_MARGIN, the one default "
+                        "of every planner)")
+
+
 # --- the preset -----------------------------------------------------------------------------------------
 def add_preset_argument(parser: argparse.ArgumentParser) -> None:
     """``--preset NAME|FILE.toml`` (default: the Siremobile Iso-C 3D)."""

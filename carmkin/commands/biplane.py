@@ -53,8 +53,7 @@ def register(parser: argparse.ArgumentParser) -> None:
     plan.add_argument("--target-mm", metavar="X,Y,Z", default="0,0,0",
                       help="the point both beams pass through, table frame (mm, default 0,0,0)")
     _scene.add_patient_arguments(plan, default="parametric")
-    plan.add_argument("--margin-mm", type=common.number(0.0, 1000.0, unit="mm"), default=10.0,
-                      help="clearance kept between the planes and from table, floor and patient (mm, default 10)")
+    common.add_margin_argument(plan, "clearance kept between the planes and from table, floor and patient")
     plan.add_argument("--html", metavar="FILE", help="write both planes and the patient in the viewer")
     plan.set_defaults(action_run=_plan)
 
