@@ -28,7 +28,7 @@ from carmkin.errors import (  # noqa: F401 (defined there, raised here)
     UsageError,
 )
 from carmkin.model.system import CArmSystem
-from carmkin.presets import list_presets, load_preset
+from carmkin.presets import biplane_planes, list_presets, load_preset
 from carmkin.transforms import check_rigid_transform, nearest_rigid
 from carmkin.validation import unit_slip
 
@@ -77,10 +77,19 @@ def add_preset_argument(parser: argparse.ArgumentParser) -> None:
 
 
 def system_from_args(args: argparse.Namespace) -> CArmSystem:
-    """The system named by ``--preset``; :class:`UsageError` for a missing or unreadable preset file."""
+    """The system named by ``--preset``; :class:`UsageError` for a missing or unreadable preset file, and for a
+    biplane preset: the commands that read one system model one plane and would silently drop the lateral one
+    (``carmkin biplane`` reads both; the frontal plane's own preset names the frontal plane alone)."""
     if str(args.preset).endswith(".toml") and not Path(args.preset).is_file():
         raise UsageError(f"--preset {args.preset}: no such preset file")
     try:
+        planes = biplane_planes(args.preset)
+        if planes is not None:
+            command = getattr(args, "prog", "this command")
+            raise UsageError(f"--preset {args.preset} is a biplane preset (frontal {planes['frontal']}, lateral "
+                             f"{planes['lateral']}); {command} models one plane and would drop the lateral one: use "
+                             f"`carmkin biplane check|plan --preset {args.preset}` for both planes, or --preset "
+                             f"{planes['frontal']} for the frontal plane alone")
         return load_preset(args.preset)
     except PresetError as exc:
         raise UsageError(f"--preset: {exc}") from None

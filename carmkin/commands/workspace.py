@@ -125,6 +125,11 @@ def run(args: argparse.Namespace) -> int:
         result = workspace.run_study(system, grid, tolerance=args.tolerance, progress=bar.update)
     print(f"preset {system.name}: {n} poses ({n // len(grid.translations_mm)} per translation), "
           f"{'isocentric closed form' if system.carm.is_isocentric else 'general polynomial'} 5-DOF IK")
+    held = system.joint_names[1:system.nq - 5]  # the joints between d0 and the C-arm's five: table (and mount)
+    if held:
+        print(f"note: preset {system.name} has {system.nq} joints; Table 4.5's study moves only the table translation "
+              f"and the C-arm's five and holds {', '.join(held)} at 0, so these are the numbers of its 6-joint chain "
+              "(--table-dofs studies the other joints)")
     _print_table(result)
     worst = max(r.max_residual for r in result.results)
     unsolved = sum(r.unsolved for r in result.results)
