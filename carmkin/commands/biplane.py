@@ -119,7 +119,7 @@ def _plan(args: argparse.Namespace) -> int:
     from carmkin.biplane import plan_biplane
 
     biplane = _load(args)
-    target = common.parse_numbers(args.target_mm, 3, "--target-mm") / MM
+    target = common.parse_numbers(args.target_mm, 3, "--target-mm", unit="mm") / MM
     patient = _scene.patient_from_args(biplane.frontal, args)
     position = patient if patient is not None else args.patient_position
     frontal, lateral = _views(args, target, position)
@@ -143,7 +143,10 @@ def _plan(args: argparse.Namespace) -> int:
 
             with open(args.html, "w", encoding="utf-8") as stream:
                 stream.write(biplane_page(biplane, plan.q, patient))
+            print(f"wrote {args.html}")
     else:
         print(f"not planned: {plan.reason}")
+        if args.html:
+            print(f"not written (no plan to show): {args.html}")
     common.write_json(args, out)
     return 0 if plan.success else 1

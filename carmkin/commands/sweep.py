@@ -113,7 +113,7 @@ def _plan(args, system):
     from carmkin.sweeps import plan_sweep
 
     q_start = parse_joints(args.q_mm_deg, system, JOINTS_FLAG) if args.q_mm_deg else None
-    return plan_sweep(system, parse_numbers(args.target_mm, 3, "--target-mm") / MM_PER_M, args.arc_deg, args.views,
+    return plan_sweep(system, parse_numbers(args.target_mm, 3, "--target-mm", unit="mm") / MM_PER_M, args.arc_deg, args.views,
                       patient=_patient(args.patient_box_mm), q_start=q_start, joint=_joint(args.joint),
                       distance=None if args.distance_mm is None else args.distance_mm / MM_PER_M,
                       compensate=not args.plain, margin=args.margin_mm / MM_PER_M,

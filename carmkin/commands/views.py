@@ -117,7 +117,7 @@ def _plan(args: argparse.Namespace) -> int:
                   f"  [{v.source}]")
         return 0
     system = common.system_from_args(args)
-    target = common.parse_numbers(args.target_mm, 3, "--target-mm") / MM
+    target = common.parse_numbers(args.target_mm, 3, "--target-mm", unit="mm") / MM
     patient = _patient(system, args)
     position = patient if patient is not None else args.patient_position
     distance = None if args.distance_mm is None else args.distance_mm / MM
@@ -128,7 +128,7 @@ def _plan(args: argparse.Namespace) -> int:
         if args.distance_mm is not None or args.rotation_deg is not None:
             raise common.UsageError("--segment-mm searches the distance and the roll: give no --distance-mm or "
                                     "--rotation-deg")
-        ends = common.parse_numbers(args.segment_mm, 6, "--segment-mm") / MM
+        ends = common.parse_numbers(args.segment_mm, 6, "--segment-mm", unit="mm") / MM
         prefer = None
         if args.primary_deg is not None:
             prefer = View.from_angles(args.primary_deg, args.secondary_deg, ends[:3], position)
@@ -187,7 +187,7 @@ def _print_plan(system, plan, position) -> None:
         if plan.clearance_to:
             print("  clearance to " + ", ".join(f"{k} {v * MM:.1f} mm" for k, v in plan.clearance_to.items()))
         if plan.solver == "qp":
-            print("  found by the QP with the motorized table's and the mount's joints free (the closed form holds them)")
+            print(f"  found by the QP with {_held_joints(system)} free (the closed form holds them)")
         for m in plan.moves:
             print(f"  move {m.joint}: {'clear' if m.clear else 'blocked'}" + (f" ({m.reason})" if m.reason else ""))
         if plan.moves and plan.duration is not None:
@@ -199,6 +199,14 @@ def _print_plan(system, plan, position) -> None:
         print(f"nearest reachable view: {_describe_view(n.view, position)}, {np.degrees(plan.angle):.2f}° away, "
               f"rotation about the beam {_rotation(system, n.q, position):.1f}°, "
               f"q = {common.format_joints(system, n.q)}, clearance {n.clearance * MM:.1f} mm")
+
+
+def _held_joints(system) -> str:
+    """What the closed-form search holds and the QP frees, named as this system has it (a motorized table's
+    joints, a mount's joints, or both)."""
+    table = [f"the motorized table's {', '.join(j.name for j in system.table.joints)}"] if system.table.joints else []
+    mount = [f"the mount's {', '.join(j.name for j in system.mount.joints)}"] if system.mount.joints else []
+    return " and ".join(table + mount) or "no other joints"
 
 
 def _plan_json(system, plan, position) -> dict:
@@ -227,7 +235,7 @@ def _map(args: argparse.Namespace) -> int:
     from carmkin.views import reach_map
 
     system = common.system_from_args(args)
-    target = common.parse_numbers(args.target_mm, 3, "--target-mm") / MM
+    target = common.parse_numbers(args.target_mm, 3, "--target-mm", unit="mm") / MM
     primary = _range(args.primary_range_deg, "--primary-range-deg", args.step_deg)
     secondary = _range(args.secondary_range_deg, "--secondary-range-deg", args.step_deg)
     paths = {k: v for k, v in (("plot", args.png and common.plot_path(args.png, "--png")),
@@ -331,7 +339,7 @@ def _optimal(args: argparse.Namespace) -> int:
     line = _read_centreline(args.centreline, "--centreline", args.frame, patient, args.patient_position)
     others = [_read_centreline(f, "--others", args.frame, patient, args.patient_position)
               for f in args.others]
-    target = None if args.target_mm is None else common.parse_numbers(args.target_mm, 3, "--target-mm") / MM
+    target = None if args.target_mm is None else common.parse_numbers(args.target_mm, 3, "--target-mm", unit="mm") / MM
     m = optimal_view_map(system, line, primary, secondary, patient, [o.points for o in others], target,
                          radius=args.radius_mm / MM, weights=weights, margin=args.margin_mm / MM, position=position,
                          workers=args.workers)

@@ -53,3 +53,117 @@ def test_workspace_on_a_motorized_table_says_which_joints_it_holds(capsys):
 def test_workspace_on_the_paper_chain_has_no_note(capsys):
     code, out, _ = cli(["workspace", "--translations-mm", "0"], capsys)
     assert code == 0 and "note:" not in out
+
+
+# --- unit slips: exit 2 naming the likely unit (the one rule of carmkin/commands/_common.py) -----------------
+@pytest.mark.parametrize("argv, option, words", [
+    (["ik", "--pose=0.193,0.406,0.342,1.178,-1.47,1.044"], "--pose", ("given in m?", "0.193 m = 193 mm",
+                                                                      "radians?", "1.178 rad = 67.49°")),
+    (["ik", "--pose=0.193,0.406,0.342,67.5,-84.2,59.8"], "--pose", ("given in m?",)),
+    (["workspace", "--translations-mm", "0", "0.05", "0.1"], "--translations-mm", ("given in m?", "0.05 m = 50 mm")),
+    (["singularity", "--q-mm-deg", "0,0.2,0,0.1,1.57,0"], "--q-mm-deg", ("given in m?", "0.2 m = 200 mm",
+                                                                        "radians?", "1.57 rad = 89.95°")),
+    (["views", "plan", "--target-mm", "0,0.1,0", "--primary-deg", "0", "--secondary-deg", "0"], "--target-mm",
+     ("given in m?", "0.1 m = 100 mm")),
+    (["reposition", "simulate", "--threshold-deg", "30"], "--threshold-deg", ("given in arcmin?", "30 arcmin = 0.5 deg")),
+])
+def test_each_listed_unit_slip_exits_2_naming_the_likely_unit(argv, option, words, capsys):
+    code, out, err = cli(argv, capsys)
+    assert code == 2 and out == ""
+    assert_one_line_error(err, option, *words)
+
+
+def test_the_pose_in_mm_and_degrees_still_solves(capsys):
+    code, out, _ = cli(["ik", "--pose=193,406,342,67.5,-84.2,59.8"], capsys)
+    assert code == 0 and "branches" in out
+
+
+@pytest.mark.parametrize("argv", [
+    ["views", "plan", "--target-mm", "0,0,0", "--primary-deg", "0", "--secondary-deg", "0", "--json"],  # all zero
+    ["views", "plan", "--target-mm", "0,-100,2", "--primary-deg", "0", "--secondary-deg", "0", "--json"],
+    ["workspace", "--translations-mm", "0", "2", "--json"],  # 2 m is beyond d0's range: not metres
+])
+def test_small_values_that_are_not_a_slip_are_accepted(argv, capsys):
+    code, _, err = cli(argv, capsys)
+    assert code == 0, err
+
+
+def test_the_slip_rule_reads_as_documented():
+    from carmkin.commands._common import METRES_SLIP_BELOW_MM, metres_slip
+
+    assert metres_slip([0.0, 0.1, 0.0]) and metres_slip([-2.9]) and not metres_slip([0.0, 0.0])
+    assert not metres_slip([0.1, METRES_SLIP_BELOW_MM]) and not metres_slip([])
+    assert metres_slip([0.2], [[0.0, 400.0]]) and not metres_slip([0.5], [[0.0, 400.0]])  # 500 mm out of range
+
+
+# --- the inconsistencies of the issue's list -------------------------------------------------------------
+def test_a_sweep_the_joints_cannot_follow_does_not_end_with_feasible(capsys):
+    code, out, _ = cli(["sweep", "plan", "--acquisition-time-s", "1"], capsys)
+    assert code == 1
+    last = out.strip().splitlines()[-1]
+    assert last.startswith("NOT feasible at a 1 s acquisition") and "orbital" in last
+
+
+def test_a_sweep_the_joints_follow_ends_with_feasible(capsys):
+    code, out, _ = cli(["sweep", "plan"], capsys)
+    assert code == 0 and out.strip().splitlines()[-1] == "feasible"
+
+
+@pytest.mark.parametrize("argv", [
+    ["views", "map", "--primary-range-deg", "-90,90", "--step-deg", "45", "--patient", "none", "--json", "-"],
+    ["views", "map", "--primary-range-deg", "-90", "--step-deg", "45", "--patient", "none", "--json", "-"],
+])
+def test_a_range_starting_negative_needs_no_equals_sign(argv, capsys):
+    code, out, err = cli(argv, capsys)
+    if argv[3] == "-90":  # a lone number is still checked as the option asks (LO,HI)
+        assert code == 2 and "--primary-range-deg" in err
+        return
+    assert code == 0, err
+    cells = json.loads(out)["cells"]
+    assert min(c["primary_deg"] for c in cells) == -90.0 and max(c["primary_deg"] for c in cells) == 90.0
+
+
+def test_a_joint_vector_starting_negative_needs_no_equals_sign(capsys):
+    code, out, err = cli(["singularity", "--q-mm-deg", "-5,200,0,100,0,0"], capsys)
+    assert code == 0, err
+    assert "table_translation=-5.0000 mm" in out
+
+
+def test_a_misspelt_option_is_still_an_unknown_option(capsys):
+    code, _, err = cli(["views", "map", "-x,1"], capsys)
+    assert code == 2 and "unrecognized arguments" in err
+
+
+def test_urdf_help_promises_nothing_it_does_not_do(capsys):
+    code, out, _ = cli(["urdf", "--help"], capsys)
+    text = " ".join(out.split())
+    assert code == 0
+    assert "created if missing" not in text and "its folder must exist" in text
+
+
+def test_urdf_refuses_a_missing_folder_as_its_help_says(tmp_path, capsys):
+    code, _, err = cli(["urdf", "-o", str(tmp_path / "missing" / "c.urdf")], capsys)
+    assert code == 2 and not (tmp_path / "missing").exists()
+
+
+def test_biplane_plan_says_what_it_wrote(tmp_path, capsys):
+    page = tmp_path / "b.html"
+    code, out, _ = cli(["biplane", "plan", "--standard", "ap", "--html", str(page)], capsys)
+    assert page.exists() == (code == 0)
+    assert (f"wrote {page}" if code == 0 else f"not written (no plan to show): {page}") in out
+
+
+def test_workspace_json_keys_carry_their_units(tmp_path, capsys):
+    code, out, _ = cli(["workspace", "--translations-mm", "0", "--json", "-"], capsys)
+    data = json.loads(out)
+    assert code == 0 and list(data) == ["translations_mm"]
+    assert list(data["translations_mm"]["0"]) == ["vertical_mm", "wigwag_deg", "horizontal_mm", "angular_deg",
+                                                  "orbital_deg"]
+
+
+def test_robotic_carm_plan_names_its_mount_not_a_motorized_table(capsys):
+    code, out, _ = cli(["views", "plan", "--preset", "robotic-carm", "--primary-deg", "0", "--secondary-deg", "0"],
+                       capsys)
+    assert code == 0
+    line = next(x for x in out.splitlines() if "found by the QP" in x)
+    assert "motorized table" not in line and "the mount's robot_a1" in line
