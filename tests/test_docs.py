@@ -222,3 +222,33 @@ def test_ci_runs_each_readme_command_of_an_extra_in_a_fresh_venv_with_only_that_
         fresh = before.rindex("python3 -m venv")
         installs = re.findall(r"pip install (?!-q --upgrade pip)[^\n]*", before[fresh:])
         assert not installs, f"`{command}` runs in a virtual environment that already has {installs}"
+
+
+# --- the README's "What is where" names resolve as written -------------------------------------------------
+WHAT_IS_WHERE = README.read_text().split("### What is where", 1)[1].split("\n## ", 1)[0]
+#: Each name resolved after a fresh ``import carmkin`` alone (every carmkin module dropped before each name, so
+#: that no earlier name's imports make a later one resolve by accident).
+RESOLVE = """
+import sys
+bad = []
+for name in sys.argv[1:]:
+    for module in [m for m in sys.modules if m == "carmkin" or m.startswith("carmkin.")]:
+        del sys.modules[module]
+    import carmkin
+    value = carmkin
+    try:
+        for part in name.split(".")[1:]:
+            value = getattr(value, part)
+    except AttributeError as exc:
+        bad.append(f"{name}: {exc}")
+print("\\n".join(bad))
+"""
+
+
+def test_every_name_of_what_is_where_resolves_after_import_carmkin():
+    names = sorted(set(re.findall(r"`(carmkin(?:\.\w+)+)`", WHAT_IS_WHERE)))
+    assert len(names) >= 20 and "carmkin.robot.verify" in names
+    done = subprocess.run([sys.executable, "-c", RESOLVE, *names], capture_output=True, text=True,
+                          timeout=HANG_GUARD_S)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip() == "", f"names of the README's What is where that fail after import carmkin:\n{done.stdout}"
