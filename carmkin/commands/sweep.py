@@ -209,6 +209,9 @@ def _html(sweep, path) -> None:
 
 
 def _reconstruct(args, system) -> int:
+    from carmkin.extras import check_installed
+
+    check_installed("itk", "cbct")  # before the plan: without RTK the reconstruction is refused at once
     from carmkin.sweeps import reconstruct as rc
 
     plot = plot_path(args.png, "--png") if args.png else None

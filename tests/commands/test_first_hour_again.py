@@ -167,3 +167,28 @@ def test_robotic_carm_plan_names_its_mount_not_a_motorized_table(capsys):
     assert code == 0
     line = next(x for x in out.splitlines() if "found by the QP" in x)
     assert "motorized table" not in line and "the mount's robot_a1" in line
+
+
+# --- refused before any work -----------------------------------------------------------------------------
+def test_sweep_reconstruct_without_the_cbct_extra_is_refused_before_planning(monkeypatch, capsys):
+    import importlib.util
+
+    import carmkin.sweeps
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "itk" else real(name, *a))
+    monkeypatch.setattr(carmkin.sweeps, "plan_sweep", lambda *a, **k: pytest.fail("planned before the check"))
+    code, out, err = cli(["sweep", "reconstruct"], capsys)
+    assert code == 2 and out == ""
+    assert_one_line_error(err, "itk is not installed", 'pip install "carmkin[cbct]"')
+
+
+def test_view_png_without_a_chromium_is_refused_before_the_scene_is_built(tmp_path, monkeypatch, capsys):
+    import carmkin.viz
+
+    monkeypatch.setenv("CARMKIN_CHROMIUM", str(tmp_path / "no-such-chromium"))
+    monkeypatch.setattr(carmkin.viz, "CArmViewer", lambda *a, **k: pytest.fail("the scene was built"))
+    code, out, err = cli(["view", "--png", str(tmp_path / "v.png")], capsys)
+    assert code == 2 and out == "" and not (tmp_path / "v.png").exists()
+    assert_one_line_error(err, "CARMKIN_CHROMIUM", "not an executable")
+
