@@ -192,3 +192,22 @@ def test_view_png_without_a_chromium_is_refused_before_the_scene_is_built(tmp_pa
     assert code == 2 and out == "" and not (tmp_path / "v.png").exists()
     assert_one_line_error(err, "CARMKIN_CHROMIUM", "not an executable")
 
+
+
+def test_an_xa_dataset_round_trips_with_the_isocentre_the_write_names(tmp_path, capsys):
+    """XA angles fix the view's direction, not where its isocentre is: the write names it, the read says what it
+    assumes without it, and read back with it the configuration does not move."""
+    pytest.importorskip("pydicom", reason="DICOM files need the dicom extra (pydicom)")
+    q, path = "0,100,0,100,20,5", tmp_path / "v.dcm"
+    code, out, _ = cli(["dicom", "--q-mm-deg", q, "--write-xa", path], capsys)
+    assert code == 0
+    iso = out.split("--isocenter-mm=")[1].split(",", 3)
+    iso = ",".join([iso[0], iso[1], iso[2].split()[0]])
+    assert iso == "100,-100,0"  # the isocentre of the preset at q: on the beam, 625 mm from the source
+    code, out, _ = cli(["dicom", "--read", path, "--q-mm-deg", q], capsys)
+    assert "note: an XA dataset does not say where its isocentre is: assumed at the patient origin" in out
+    code, out, _ = cli(["dicom", "--read", path, "--q-mm-deg", q, f"--isocenter-mm={iso}"], capsys)
+    assert code == 0 and "note:" not in out
+    moves = json.loads(cli(["dicom", "--read", path, "--q-mm-deg", q, f"--isocenter-mm={iso}", "--json", "-"],
+                           capsys)[1])["moves"]
+    assert max(abs(v) for v in moves.values()) < 1e-6
