@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 
 from carmkin.extras import require
 
@@ -173,7 +174,10 @@ def _experiment(args) -> int:
 
     system = system_from_args(args)
     config = _config(args)
-    stats = ex.summary(ex.run_experiment(system, config, args.tasks, args.seed))
+    from tqdm import tqdm
+
+    with tqdm(total=args.tasks, unit="task", desc="reposition experiment", leave=False, file=sys.stderr) as bar:
+        stats = ex.summary(ex.run_experiment(system, config, args.tasks, args.seed, progress=lambda i: bar.update(1)))
     print(f"§4.6.2 repositioning, simulated: {system.name}, {args.tasks} tasks (seed {args.seed}), corner noise "
           f"{config.corner_noise_px} px, operator {args.operator_relative:.0%} + {args.operator_mm} mm / "
           f"{args.operator_deg}°, thresholds {args.threshold_mm} mm / {args.threshold_deg}°")
