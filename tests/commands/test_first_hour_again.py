@@ -211,3 +211,18 @@ def test_an_xa_dataset_round_trips_with_the_isocentre_the_write_names(tmp_path, 
     moves = json.loads(cli(["dicom", "--read", path, "--q-mm-deg", q, f"--isocenter-mm={iso}", "--json", "-"],
                            capsys)[1])["moves"]
     assert max(abs(v) for v in moves.values()) < 1e-6
+
+
+def test_drr_on_a_cuda_device_torch_cannot_see_is_refused_before_the_ct_loads(monkeypatch, capsys):
+    """`drr --device cuda` on a CPU build of torch was an internal error (exit 3) after 99 s of work."""
+    import sys
+    import types
+
+    import carmkin.interop.drr as drr
+
+    cpu_torch = types.SimpleNamespace(__version__="2.13.0+cpu", cuda=types.SimpleNamespace(is_available=lambda: False))
+    monkeypatch.setitem(sys.modules, "torch", cpu_torch)
+    monkeypatch.setattr(drr, "load_ct", lambda *a, **k: pytest.fail("the CT was loaded before the device check"))
+    code, out, err = cli(["drr", "--device", "cuda"], capsys)
+    assert code == 2 and out == ""
+    assert_one_line_error(err, "--device cuda", "no CUDA device", "--device cpu")
