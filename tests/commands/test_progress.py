@@ -87,14 +87,15 @@ def test_redirected_stderr_gets_no_progress_frames():
     assert done.returncode == 0 and done.stderr == ""
 
 
-def test_the_heartbeat_redraws_a_bar_that_waits_for_a_long_step():
+def test_the_heartbeat_redraws_a_bar_that_waits_for_a_long_step(monkeypatch):
     """A bar redraws itself only when updated: during a long step the heartbeat redraws it, so that its elapsed
     time and time left keep moving (issue "The first hour, again": verify was silent for 27 s)."""
     from tqdm import tqdm
 
+    monkeypatch.delenv("TQDM_DISABLE", raising=False)  # set by an earlier in-process command whose stderr was captured
     stream = Terminal()
     with Heartbeat("carmkin demo", stream=stream, delay=0.0, refresh=0.01):
-        with tqdm(total=4, desc="demo", file=stream, mininterval=0, leave=False) as bar:
+        with tqdm(total=4, desc="demo", file=stream, mininterval=0, leave=False, disable=False) as bar:
             bar.update(1)
             drawn = stream.getvalue().count("1/4")
             deadline = time.monotonic() + HANG_GUARD_S
