@@ -47,8 +47,9 @@ def require(module: str, extra: str):
 
 
 def check_installed(module: str, extra: str) -> None:
-    """:class:`MissingExtraError`, as :func:`require` says it, when ``module`` is not installed, without importing
-    it: a command checks this before any work when the module loads only later (RTK takes tens of seconds)."""
+    """:class:`~carmkin.errors.MissingExtraError`, as :func:`require` says it, when ``module`` is not installed,
+    without importing it: a command checks this before any work when the module loads only later (RTK takes tens
+    of seconds)."""
     from importlib.util import find_spec
 
     if extra not in EXTRAS:
