@@ -3,6 +3,7 @@
 Units are SI (m, rad) throughout the library; presets and the CLI speak mm and degrees.
 """
 
+from carmkin._lazy import submodules as _submodules
 from carmkin.errors import (
     CarmkinError,
     InvalidConfigurationError,
@@ -44,11 +45,10 @@ __all__ = [
 ]
 
 
-#: Submodules loaded on first attribute access (``carmkin.analytic_ik.solve(...)`` after ``import carmkin``)
-#: so that importing carmkin does not pull in the QP solvers, coal or meshcat.
-_LAZY_SUBMODULES = {"model", "robot", "analytic_ik", "analytic", "qp_ik", "qp", "singularity", "studies",
-                    "imaging", "panorama", "plots", "reposition", "transforms", "viz", "sweeps", "patient", "views",
-                    "world", "datasets", "calibration", "biplane"}
+#: Submodules load on first attribute access (``carmkin.analytic_ik.solve(...)`` after ``import carmkin``), so
+#: that importing carmkin does not pull in the QP solvers, coal or meshcat: every public submodule
+#: (:func:`carmkin._lazy.submodules`).
+_submodule = _submodules(__name__, __path__, also=("viz",))
 
 
 def _version() -> str:
@@ -69,8 +69,4 @@ def __getattr__(name: str):
         from carmkin.world.tolerances import DEFAULT_MARGIN
 
         return DEFAULT_MARGIN
-    if name in _LAZY_SUBMODULES:
-        import importlib
-
-        return importlib.import_module(f"{__name__}.{name}")
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return _submodule(name)

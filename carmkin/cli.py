@@ -34,8 +34,20 @@ USAGE_ERROR, INTERNAL_ERROR, INTERRUPTED = 2, 3, 130
 BROKEN_PIPE = 141
 
 
+#: An argument that is a value, not an option, though it starts with "-": a negative number or a comma-separated
+#: list of numbers whose first is negative (``--primary-range-deg -90,90``, ``--q-mm-deg -5,200,0,100,0,0``).
+#: argparse alone knows only a lone negative number, and read the list as an unknown option.
+NEGATIVE_NUMBERS = re.compile(r"^-(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?(?:,\s*[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)*$")
+
+
 class OneLineParser(argparse.ArgumentParser):
-    """An ArgumentParser whose usage errors are one line (``carmkin view: error: argument --q: ...``), exit 2."""
+    """An ArgumentParser whose usage errors are one line (``carmkin view: error: argument --q: ...``), exit 2,
+    and which reads a value starting with a negative number as a value (:data:`NEGATIVE_NUMBERS`), no ``=``
+    needed."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = NEGATIVE_NUMBERS  # argparse's own hook for "looks like a negative number"
 
     def error(self, message: str):
         self.exit(USAGE_ERROR, f"{self.prog}: error: {_one_line(message)} (see {self.prog} --help)\n")

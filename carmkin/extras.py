@@ -44,7 +44,25 @@ def require(module: str, extra: str):
     try:
         return importlib.import_module(module)
     except ModuleNotFoundError as exc:
-        missing = exc.name or module
-        raise MissingExtraError(
-            f"{module} is not installed (missing module {missing!r}; the {extra!r} extra brings "
-            f"{EXTRAS[extra]}): install it with {install_command(extra)}", module, extra) from None
+        raise _missing(module, exc.name or module, extra) from None
+
+
+def check_installed(module: str, extra: str) -> None:
+    """:class:`~carmkin.errors.MissingExtraError`, as :func:`require` says it, when ``module`` is not installed,
+    without importing it: a command checks this before any work when the module loads only later (RTK takes tens
+    of seconds)."""
+    from importlib.util import find_spec
+
+    if extra not in EXTRAS:
+        raise InvalidParameterError(f"extra must be one of {', '.join(EXTRAS)}, got {extra!r}")
+    try:
+        found = find_spec(module) is not None
+    except (ImportError, ValueError):  # a parent package missing, or a module without a spec
+        found = False
+    if not found:
+        raise _missing(module, module, extra)
+
+
+def _missing(module: str, missing: str, extra: str) -> MissingExtraError:
+    return MissingExtraError(f"{module} is not installed (missing module {missing!r}; the {extra!r} extra brings "
+                             f"{EXTRAS[extra]}): install it with {install_command(extra)}", module, extra)

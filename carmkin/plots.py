@@ -106,6 +106,23 @@ def _obstacle_corners(obstacle) -> np.ndarray:
     return local @ obstacle.pose[:3, :3].T + obstacle.pose[:3, 3]
 
 
+def _carm_parts(world) -> list[tuple[str, np.ndarray]]:
+    """``(name, (8, 3) corners, table frame m)`` of each C-arm collision body of ``world`` as last placed (its
+    boxes: every body of the chain's collision model is a box), so that a picture shows the parts the clearance
+    is measured on, not only the chain's frame origins."""
+    names = {a for a, _ in world.pairs}
+    signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
+    parts = []
+    for k, body in enumerate(world.geometry_model.geometryObjects):
+        half = getattr(body.geometry, "halfSide", None)
+        if body.name not in names or half is None:
+            continue
+        placement = world.geometry_data.oMg[k]
+        parts.append((body.name, (signs * np.asarray(half)) @ np.asarray(placement.rotation).T
+                      + np.asarray(placement.translation)))
+    return parts
+
+
 def _turn(o, a, b) -> float:
     """z of the cross product (a − o) × (b − o) of 2D points: > 0 for a left (counter-clockwise) turn."""
     return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
@@ -132,8 +149,9 @@ def _hull(points: np.ndarray) -> np.ndarray:
 def scene_figure(system, q, patient=None, target=None, path=None, title: str = "") -> Figure:
     """Two orthographic views of the table frame (m shown as mm): the side view (Z0 across, Y0 up the page: Y0
     points down) and the end view (X0 across): the table top, the patient's bodies (their bounding boxes' outlines),
-    the C-arm's DH frame origins joined in chain order (after a mount's base and joint points), the X-ray beam from the source to the detector centre and
-    the ``target`` (3,) m. ``patient``: None, a list of Obstacle or a model with ``obstacles()``.
+    the C-arm's collision bodies (its boxes: cart, arm, C, source housing, detector; a body in collision filled red)
+    over its DH frame origins joined in chain order (after a mount's base and joint points), the X-ray beam from
+    the source to the detector centre and the ``target`` (3,) m. ``patient``: None, a list of Obstacle or a model with ``obstacles()``.
 
     The closest pair of :class:`carmkin.world.World` (C-arm part against table top, patient or floor) is drawn
     as a line between its nearest points, labelled with its distance; when the C-arm collides (a pair at or
@@ -162,11 +180,13 @@ def scene_figure(system, q, patient=None, target=None, path=None, title: str = "
                                                                     "pose": top})()))]
     bodies += [("patient", o.name, _obstacle_corners(o)) for o in as_obstacles(patient)]
     world = World(system, patient)
-    distances = world.distances(q=q)
+    distances = world.distances(q=q)  # also places the world's bodies at q
+    parts = _carm_parts(world)
     nearest = int(np.argmin(distances))
     near = world.proximity(distances, np.inf)  # every pair's witness points, in pair order
     witness = np.vstack((near.point1[nearest], near.point2[nearest])) * 1e3
     collided = {link_of(b) for (_, b), d in zip(world.pairs, distances.tolist()) if d <= 0.0}
+    collided_parts = {a for (a, _), d in zip(world.pairs, distances.tolist()) if d <= 0.0}
     part, body = (link_of(n) for n in world.pairs[nearest])
     gap = f"{part} to {body}: {distances[nearest] * 1e3:.1f} mm"
     closest_label = f"COLLISION {gap}" if distances[nearest] <= 0.0 else f"closest: {gap}"
@@ -179,8 +199,13 @@ def scene_figure(system, q, patient=None, target=None, path=None, title: str = "
             hit = name in collided
             ax.add_patch(Polygon(outline, closed=True, facecolor=SCENE_COLOURS[kind], alpha=0.5, label=kind, gid=name,
                                  edgecolor=SCENE_COLOURS["collision"] if hit else "k", lw=2.0 if hit else 0.5))
+        for name, corners in parts:  # the C-arm's collision bodies (cart, arm, C, housings, detector)
+            hit = name in collided_parts
+            ax.add_patch(Polygon(_hull(corners[:, [axis, 1]] * 1e3), closed=True, gid=f"carm:{name}",
+                                 facecolor=SCENE_COLOURS["collision" if hit else "carm"], alpha=0.35,
+                                 edgecolor=SCENE_COLOURS["carm"], lw=0.8, label="C-arm bodies"))
         chain = np.vstack((np.zeros(3) if not len(robot) else robot[-1], frames, source)) * 1e3
-        ax.plot(chain[:, axis], chain[:, 1], "-o", color=SCENE_COLOURS["carm"], ms=3, lw=2, label="C-arm (DH frames)")
+        ax.plot(chain[:, axis], chain[:, 1], "-o", color=SCENE_COLOURS["carm"], ms=2, lw=1, label="C-arm (DH frames)")
         if len(robot):
             ax.plot(robot[:, axis] * 1e3, robot[:, 1] * 1e3, "-o", color="k", ms=3, lw=3, label="mount (robot axes)")
         beam = np.vstack((source, detector)) * 1e3

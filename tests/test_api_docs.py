@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 
 import carmkin
+from hang import HANG_GUARD_S
 
 ROOT = Path(__file__).resolve().parents[1]
 API = ROOT / "docs" / "api"
@@ -72,7 +73,7 @@ def test_the_built_api_pages_render_every_role(tmp_path):
 
     config = api_config(tmp_path)
     done = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "-q", "-f", str(config)],
-                          capture_output=True, text=True, timeout=900, cwd=tmp_path)
+                          capture_output=True, text=True, timeout=HANG_GUARD_S, cwd=tmp_path)
     assert done.returncode == 0, done.stderr[-3000:]
     pages = sorted((tmp_path / "site" / "api").glob("*.html"))
     assert len(pages) == len(list(API.glob("*.md")))

@@ -24,7 +24,8 @@ PLANNERS = ("carmkin.views", "carmkin.sweeps", "carmkin.reposition", "carmkin.pa
 #: (the one collision world: obstacles, batch, swept and joint-by-joint clearance) stands on the model and
 #: under the robot, whose validity is computed on it; ``carmkin.datasets`` is a study.
 LAYERS = (
-    ("carmkin.errors", "carmkin.seed"),  # the typed errors; the dissertation's quoted numbers (plain data)
+    # the typed errors; the dissertation's quoted numbers (plain data); submodules as attributes on first use
+    ("carmkin.errors", "carmkin.seed", "carmkin._lazy"),
     ("carmkin.validation", "carmkin.extras"),
     ("carmkin.transforms",),
     ("carmkin.model", "carmkin.presets"),  # what the machine is, its URDF and Pinocchio models; preset files

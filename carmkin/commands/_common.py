@@ -28,7 +28,7 @@ from carmkin.errors import (  # noqa: F401 (defined there, raised here)
     UsageError,
 )
 from carmkin.model.system import CArmSystem
-from carmkin.presets import list_presets, load_preset
+from carmkin.presets import biplane_planes, list_presets, load_preset
 from carmkin.transforms import check_rigid_transform, nearest_rigid
 from carmkin.validation import unit_slip
 
@@ -43,6 +43,31 @@ DEG_PER_RAD = 180.0 / math.pi
 JOINTS_METAVAR = "V1,...,VN"
 
 
+def _default_margin_mm() -> float:
+    """:data:`carmkin.DEFAULT_MARGIN` in mm, read from ``carmkin/world/tolerances.py`` itself (the one place it is
+    stated): importing the package ``carmkin.world`` loads coal, which ``carmkin --help`` must not."""
+    import importlib.util
+
+    path = Path(__file__).resolve().parents[1] / "world" / "tolerances.py"
+    spec = importlib.util.spec_from_file_location("_carmkin_cli_tolerances", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return float(module.DEFAULT_MARGIN) * MM_PER_M
+
+
+#: The one default clearance margin (:data:`carmkin.DEFAULT_MARGIN`) in mm: the default of every planner's
+#: ``--margin-mm`` (views, sweeps, the biplane), as of the library's planners.
+DEFAULT_MARGIN_MM = _default_margin_mm()
+
+
+def add_margin_argument(parser: argparse.ArgumentParser,
+                        what: str = "clearance every moving part keeps from table, floor and patient") -> None:
+    """Add ``--margin-mm`` (``args.margin_mm``, mm), defaulting to :data:`DEFAULT_MARGIN_MM`."""
+    parser.add_argument("--margin-mm", type=number(0.0, 1000.0, unit="mm"), default=DEFAULT_MARGIN_MM,
+                        help=f"{what} (mm, default {DEFAULT_MARGIN_MM:g}: carmkin.DEFAULT_MARGIN, the one default "
+                        "of every planner)")
+
+
 # --- the preset -----------------------------------------------------------------------------------------
 def add_preset_argument(parser: argparse.ArgumentParser) -> None:
     """``--preset NAME|FILE.toml`` (default: the Siremobile Iso-C 3D)."""
@@ -52,10 +77,19 @@ def add_preset_argument(parser: argparse.ArgumentParser) -> None:
 
 
 def system_from_args(args: argparse.Namespace) -> CArmSystem:
-    """The system named by ``--preset``; :class:`UsageError` for a missing or unreadable preset file."""
+    """The system named by ``--preset``; :class:`UsageError` for a missing or unreadable preset file, and for a
+    biplane preset: the commands that read one system model one plane and would silently drop the lateral one
+    (``carmkin biplane`` reads both; the frontal plane's own preset names the frontal plane alone)."""
     if str(args.preset).endswith(".toml") and not Path(args.preset).is_file():
         raise UsageError(f"--preset {args.preset}: no such preset file")
     try:
+        planes = biplane_planes(args.preset)
+        if planes is not None:
+            command = getattr(args, "prog", "this command")
+            raise UsageError(f"--preset {args.preset} is a biplane preset (frontal {planes['frontal']}, lateral "
+                             f"{planes['lateral']}); {command} models one plane and would drop the lateral one: use "
+                             f"`carmkin biplane check|plan --preset {args.preset}` for both planes, or --preset "
+                             f"{planes['frontal']} for the frontal plane alone")
         return load_preset(args.preset)
     except PresetError as exc:
         raise UsageError(f"--preset: {exc}") from None
@@ -167,7 +201,7 @@ def add_joints_argument(parser: argparse.ArgumentParser, what: str = "configurat
     used before (a note on stderr when used)."""
     parser.add_argument(JOINTS_FLAG, dest="q_mm_deg", metavar=JOINTS_METAVAR,
                         help=f"{what}: one value per joint of the preset, mm for prismatic and degrees for revolute "
-                        f"joints, comma-separated (write {JOINTS_FLAG}=-5,... when the first is negative; default: "
+                        f"joints, comma-separated (default: "
                         f"{default})")
     for old in old_names:
         add_alias(parser, old, JOINTS_FLAG, "q_mm_deg", metavar=JOINTS_METAVAR)
@@ -205,6 +239,9 @@ def parse_joints(text: str, system: CArmSystem, option: str, check_range: bool =
                                             f"(expected {expected})") from None
         if not math.isfinite(values[i]):
             raise InvalidConfigurationError(f"{option}: {names[i]} must be finite, got {part!r}")
+    prismatic = np.asarray(system.prismatic, dtype=bool)
+    ranges = np.array([[r.lower, r.upper] for r in system.joint_ranges])[prismatic] * MM_PER_M
+    check_unit_slip(option, text, values[prismatic], values[~prismatic], ranges, error=InvalidConfigurationError)
     q = values / to_cli_units(system)
     if check_range:
         check_joint_ranges(system, q, option)
@@ -237,9 +274,50 @@ def joints_json(system: CArmSystem, q) -> dict[str, float]:
             for n, u, v in zip(system.joint_names, joint_units(system), np.asarray(q) * to_cli_units(system))}
 
 
+# --- unit slips: metres where mm are read, radians where degrees are --------------------------------------
+#: The command line's one unit-slip rule. A vector of lengths read in mm (a point, a joint vector's prismatic
+#: joints, a list of table translations) whose values are all below this magnitude (mm), not all zero, is a
+#: vector in metres: the C-arm's scene spans metres, and no command needs every coordinate of a point within
+#: 3 mm of the table origin. Where the values have ranges (joints), the slip needs also their reading in metres
+#: to lie in range. Refused (exit 2) naming metres (and radians, when the angles beside them read as radians),
+#: never converted. A lone scalar option is checked by its bounds instead (:func:`number`, ``unit_slip``).
+METRES_SLIP_BELOW_MM = 3.0
+#: Angles (deg) that read as radians beside lengths in metres: every |value| within a turn in radians (2π).
+RADIANS_AT_MOST = 2.0 * math.pi
+
+
+def metres_slip(values_mm, ranges_mm=None) -> bool:
+    """True when lengths ``values_mm`` (mm) look like metres by :data:`METRES_SLIP_BELOW_MM` (and, with
+    ``ranges_mm`` ((n, 2) lower/upper, mm), their reading in metres lies in range)."""
+    v = np.asarray(values_mm, dtype=float).ravel()
+    if v.size == 0 or not np.any(v != 0.0) or np.any(np.abs(v) >= METRES_SLIP_BELOW_MM):
+        return False
+    if ranges_mm is not None:
+        low, high = np.asarray(ranges_mm, dtype=float).reshape(-1, 2).T
+        return bool(np.all((low <= v * MM_PER_M) & (v * MM_PER_M <= high)))
+    return True
+
+
+def check_unit_slip(option: str, text, lengths_mm, angles_deg=(), ranges_mm=None, error=UsageError) -> None:
+    """``error`` naming ``option``, metres and (when every angle reads as radians) radians, when
+    ``lengths_mm`` look like metres (:func:`metres_slip`); nothing otherwise."""
+    if not metres_slip(lengths_mm, ranges_mm):
+        return
+    lengths = np.asarray(lengths_mm, dtype=float).ravel()
+    angles = np.asarray(angles_deg, dtype=float).ravel()
+    first = lengths[np.flatnonzero(lengths)[0]]
+    hint = f"given in m? ({first:g} m = {first * MM_PER_M:g} mm)"
+    turning = angles[angles != 0.0]
+    if turning.size and np.all(np.abs(turning) <= RADIANS_AT_MOST):
+        hint += f" and the angles in radians? ({turning[0]:g} rad = {math.degrees(turning[0]):.4g}°)"
+    raise error(f"{option} {text}: every length is below {METRES_SLIP_BELOW_MM:g} mm: {hint}; the command line "
+                "reads mm and degrees")
+
+
 # --- numbers and poses ----------------------------------------------------------------------------------
-def parse_numbers(text: str, count: int | None, option: str, error=UsageError) -> np.ndarray:
-    """Comma-separated finite numbers (``count`` of them unless ``None``); ``error`` names the option."""
+def parse_numbers(text: str, count: int | None, option: str, error=UsageError, unit: str = "") -> np.ndarray:
+    """Comma-separated finite numbers (``count`` of them unless ``None``); ``error`` names the option.
+    ``unit="mm"``: lengths (a point, sizes), refused when they look like metres (:func:`check_unit_slip`)."""
     try:
         values = np.array([float(v) for v in str(text).split(",")])
     except ValueError:
@@ -248,7 +326,17 @@ def parse_numbers(text: str, count: int | None, option: str, error=UsageError) -
         raise error(f"{option} needs {count} comma-separated numbers, got {len(values)} in {text!r}")
     if not np.all(np.isfinite(values)):
         raise error(f"{option} values must be finite, got {text!r}")
+    if unit == "mm":
+        check_unit_slip(option, text, values, error=error)
     return values
+
+
+def parse_pose(text: str, option: str) -> np.ndarray:
+    """``"x,y,z,rx,ry,rz"`` (position mm, rotation vector deg) -> 4x4 pose (m); a pose in m and rad is refused
+    (:func:`check_unit_slip`)."""
+    values = parse_numbers(text, 6, option)
+    check_unit_slip(option, text, values[:3], values[3:])
+    return pose_from_mm_deg(values[:3], values[3:])
 
 
 def pose_from_mm_deg(position_mm, rotation_vector_deg) -> np.ndarray:
@@ -338,6 +426,7 @@ def _read_json_pose(path: str, option: str) -> np.ndarray:
         raise InvalidPoseError(f"{option} {path}: position_mm/rotation_vector_deg must be numbers") from None
     if position.shape != (3,) or rotation.shape != (3,) or not np.all(np.isfinite(np.r_[position, rotation])):
         raise InvalidPoseError(f"{option} {path}: position_mm and rotation_vector_deg need 3 finite values each")
+    check_unit_slip(f"{option} {path}:", f"position_mm {position.tolist()}", position, rotation, error=InvalidPoseError)
     return pose_from_mm_deg(position, rotation)
 
 
@@ -357,9 +446,11 @@ def integer(minimum: int | None = None, maximum: int | None = None):
 
 
 def number(minimum: float | None = None, maximum: float | None = None, open_minimum: bool = False,
-           open_maximum: bool = False, unit: str = ""):
+           open_maximum: bool = False, unit: str = "", slips: tuple[tuple[str, float], ...] = ()):
     """argparse type: a finite number in ``[minimum, maximum]``; ``open_minimum``/``open_maximum`` exclude the
-    bound itself."""
+    bound itself. A value out of bounds is refused naming the likely unit when, read in another unit, it lies
+    within them: the units of :data:`carmkin.validation.UNIT_SLIPS` for ``unit``, then this option's own
+    ``slips`` (``(unit given, factor to unit)`` pairs, e.g. ``("arcmin", 1 / 60)`` for a threshold in deg)."""
     def parse(text: str) -> float:
         try:
             value = float(text)
@@ -370,10 +461,21 @@ def number(minimum: float | None = None, maximum: float | None = None, open_mini
         if not math.isfinite(value) or too_low or too_high:
             raise argparse.ArgumentTypeError(f"expected a finite number "
                                              f"{_bounds(minimum, maximum, open_minimum, open_maximum)}{_unit(unit)}, "
-                                             f"got {text}{unit_slip(value, minimum, maximum, unit)}")
+                                             f"got {text}{_slip(value, minimum, maximum, unit, slips)}")
         return value
     parse.__name__ = "number"
     return parse
+
+
+def _slip(value: float, minimum, maximum, unit: str, slips) -> str:
+    """The hint of :func:`number` for an out-of-bounds value: ``carmkin.validation.unit_slip``, then ``slips``."""
+    hint = unit_slip(value, minimum, maximum, unit)
+    if hint or minimum is None or maximum is None:
+        return hint
+    for other, factor in slips:
+        if minimum <= value * factor <= maximum:
+            return f": given in {other}? {value:g} {other} = {value * factor:.4g} {unit}"
+    return ""
 
 
 def patient_position(text: str) -> str:

@@ -3,7 +3,8 @@
 Commands with a measured amount of work show a tqdm bar (``verify``, ``workspace``...); every other command
 that runs longer than :data:`DELAY_S` gets this heartbeat instead, so that no command is silent for more than
 about 2 s. Both only draw on a terminal: with stderr redirected to a file or a pipe nothing is written (no bar
-frames in a log). The heartbeat stays quiet while a tqdm bar is on screen and erases itself at the end.
+frames in a log). While a tqdm bar is on screen the heartbeat redraws it every :data:`REFRESH_S` (done/total,
+elapsed, rate and time left keep moving during a long step) instead of its own line, which it erases at the end.
 """
 
 from __future__ import annotations
@@ -20,10 +21,21 @@ DELAY_S = 1.5
 REFRESH_S = 0.5
 
 
-def _bars_on_screen() -> bool:
-    """Whether a tqdm bar is drawing now (tqdm is imported only if a command already did)."""
+def _bars_on_screen() -> list:
+    """The tqdm bars drawing now (tqdm is imported only if a command already did)."""
     tqdm_module = sys.modules.get("tqdm.std")
-    return bool(tqdm_module is not None and getattr(tqdm_module.tqdm, "_instances", None))
+    return [] if tqdm_module is None else [b for b in list(getattr(tqdm_module.tqdm, "_instances", ()))
+                                           if not getattr(b, "disable", True)]
+
+
+def _refresh(bars) -> None:
+    """Redraw ``bars``: their elapsed time, rate and time left move on while one step of the work takes long
+    (a bar redraws itself only when it is updated: ``verify`` showed nothing for 27 s)."""
+    for bar in bars:
+        try:
+            bar.refresh()
+        except (OSError, ValueError, AttributeError):  # the terminal went away, or the bar just closed
+            pass
 
 
 class Heartbeat:
@@ -73,7 +85,10 @@ class Heartbeat:
         if self._stop.wait(self.delay):
             return
         while not self._stop.is_set():
-            if not _bars_on_screen():
+            bars = _bars_on_screen()
+            if bars:
+                _refresh(bars)
+            else:
                 self._draw(f"{self.name}: working, {time.monotonic() - self._start:.0f} s")
             if self._stop.wait(self.refresh):
                 break

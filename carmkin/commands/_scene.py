@@ -59,6 +59,17 @@ def describe_patient(patient, position: str) -> str:
     return f"{type(patient).__name__}"
 
 
+def patient_json(patient, position: str) -> dict:
+    """The patient of :func:`describe_patient` for a ``--json`` file: model, position and (parametric) size."""
+    if patient is None:
+        return {"model": "none", "position": position}
+    height, mass = getattr(patient, "height", None), getattr(patient, "mass", None)
+    if height is not None and mass is not None:
+        return {"model": "parametric", "position": getattr(patient, "position", position), "height_mm": height * MM,
+                "mass_kg": float(mass)}
+    return {"model": type(patient).__name__, "position": getattr(patient, "position", position)}
+
+
 def describe_scene(system, target, patient, position: str) -> str:
     """Lines: the target in the table frame and its height over the table top, the table top's Y0, the patient."""
     target = np.asarray(target, dtype=float)

@@ -53,8 +53,7 @@ def register(parser: argparse.ArgumentParser) -> None:
     plan.add_argument("--target-mm", metavar="X,Y,Z", default="0,0,0",
                       help="the point both beams pass through, table frame (mm, default 0,0,0)")
     _scene.add_patient_arguments(plan, default="parametric")
-    plan.add_argument("--margin-mm", type=common.number(0.0, 1000.0, unit="mm"), default=10.0,
-                      help="clearance kept between the planes and from table, floor and patient (mm, default 10)")
+    common.add_margin_argument(plan, "clearance kept between the planes and from table, floor and patient")
     plan.add_argument("--html", metavar="FILE", help="write both planes and the patient in the viewer")
     plan.set_defaults(action_run=_plan)
 
@@ -120,7 +119,7 @@ def _plan(args: argparse.Namespace) -> int:
     from carmkin.biplane import plan_biplane
 
     biplane = _load(args)
-    target = common.parse_numbers(args.target_mm, 3, "--target-mm") / MM
+    target = common.parse_numbers(args.target_mm, 3, "--target-mm", unit="mm") / MM
     patient = _scene.patient_from_args(biplane.frontal, args)
     position = patient if patient is not None else args.patient_position
     frontal, lateral = _views(args, target, position)
@@ -144,7 +143,10 @@ def _plan(args: argparse.Namespace) -> int:
 
             with open(args.html, "w", encoding="utf-8") as stream:
                 stream.write(biplane_page(biplane, plan.q, patient))
+            print(f"wrote {args.html}")
     else:
         print(f"not planned: {plan.reason}")
+        if args.html:
+            print(f"not written (no plan to show): {args.html}")
     common.write_json(args, out)
     return 0 if plan.success else 1

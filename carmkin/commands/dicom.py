@@ -81,7 +81,11 @@ def run(args: argparse.Namespace) -> int:
 
         if args.write_xa:
             dicom_io.write_xa(system, q, code, origin).save_as(args.write_xa, enforce_file_format=True)
-            print(f"wrote {args.write_xa}")
+            T = system.fk(q)
+            iso = (T[:3, 3] + T[:3, 2] * system.carm.orbital_offset) * 1e3  # on the beam, source-isocentre away
+            print(f"wrote {args.write_xa} (an XA dataset holds the view's angles, not where its isocentre is: read it "
+                  f"back with --isocenter-mm={','.join(f'{round(v, 3) + 0.0:g}' for v in iso)}, this "
+                  "configuration's isocentre in the table frame)")
         if args.write_enhanced:
             ds = dicom_io.write_enhanced_xa(system, q, patient_position=code, convention=args.positioner_convention)
             ds.save_as(args.write_enhanced, enforce_file_format=True)
@@ -102,6 +106,9 @@ def _read(system, q, args, origin, ds) -> int:
                                      convention=args.positioner_convention)
     # Nothing is printed before the file and its geometry are read: a bad file is one line on stderr, exit 2.
     print(f"preset {system.name}: q = {describe(system, q)}")
+    if not view.full_pose and args.isocenter_mm is None:
+        print(f"note: an XA dataset does not say where its isocentre is: assumed at the patient origin "
+              f"{args.patient_origin_mm} mm (table frame); give --isocenter-mm, the point the beam passed through")
     print(f"view from the {view.source}: source at {np.round(view.pose[:3, 3] * 1e3, 3)} mm (table frame), "
           f"beam direction {np.round(view.pose[:3, 2], 6)}")
     out = {"preset": system.name, "q_current": joints_json(system, q), "view_source": str(view.source),

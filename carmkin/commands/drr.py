@@ -17,6 +17,8 @@ import argparse
 
 import numpy as np
 
+from carmkin.errors import UsageError
+
 from ._common import add_json_argument, add_png_argument, add_preset_argument, integer, joints_json, number, \
     system_from_args, write_json
 from ._interop import add_configuration_argument, configuration, describe, millimetres
@@ -41,6 +43,18 @@ def register(parser: argparse.ArgumentParser) -> None:
                         help="panorama beads: height above the planning plane (mm, default 120)")
 
 
+def _check_device(device: str | None) -> None:
+    """``--device cuda`` (or ``cuda:N``) on a torch that sees no GPU (a CPU build, no device) is a usage error."""
+    if device is None or not str(device).startswith("cuda"):
+        return
+    from carmkin.extras import require
+
+    torch = require("torch", "drr")
+    if not torch.cuda.is_available():
+        raise UsageError(f"--device {device}: this torch sees no CUDA device (torch {getattr(torch, '__version__', '?')}"
+                         "; a CPU build, or no GPU): use --device cpu, or leave --device out")
+
+
 def run(args: argparse.Namespace) -> int:
     from carmkin import imaging
     from carmkin.interop import drr
@@ -48,6 +62,7 @@ def run(args: argparse.Namespace) -> int:
     system = system_from_args(args)
     q = configuration(system, args.q_mm_deg)
     bead = millimetres(args.bead_mm, "--bead-mm")
+    _check_device(args.device)  # before the CT is loaded and anything rendered
     print(f"preset {system.name}: q = {describe(system, q)}")
     volume = drr.load_ct()
     T = system.fk(q)

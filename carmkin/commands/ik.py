@@ -2,7 +2,7 @@
 
 The pose is the X-ray source frame (origin at the source centre, Z = principal axis) in the table frame 0:
   --pose x,y,z,rx,ry,rz   position in mm, orientation as a rotation vector in degrees (axis × angle,
-                          R = exp([r]×)); write --pose=-100,... when the first value is negative
+                          R = exp([r]×)); a first value may be negative: --pose -100,...
   --pose-file FILE        FILE.json: {"position_mm": [x, y, z], "rotation_vector_deg": [rx, ry, rz]}
                           or {"matrix_mm": 4x4 homogeneous matrix with its translation in mm};
                           any other file: the 4x4 matrix as text (translation in mm); a matrix that
@@ -33,8 +33,7 @@ from ._common import (
     joint_units,
     joints_json,
     parse_joints,
-    parse_numbers,
-    pose_from_mm_deg,
+    parse_pose,
     read_pose,
     require_six_joints,
     system_from_args,
@@ -95,8 +94,7 @@ def run(args: argparse.Namespace) -> int:
     require_six_joints(system, "carmkin ik", "use carmkin.qp_ik.solve(system, T) in Python (it handles motorized "
                        "tables), or --preset siremobile-iso-c3d")
     if args.pose is not None:
-        values = parse_numbers(args.pose, 6, "--pose")
-        T = pose_from_mm_deg(values[:3], values[3:])
+        T = parse_pose(args.pose, "--pose")
     else:
         T = read_pose(args.pose_file, "--pose-file")
     q_current = None if args.q_mm_deg is None else parse_joints(args.q_mm_deg, system, JOINTS_FLAG)

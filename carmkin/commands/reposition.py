@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 
 from carmkin.extras import require
 
@@ -35,15 +36,25 @@ ROUTE_4_6_2 = ("not the seed's §4.6.2: this run evaluates the guidance's filter
 MIN_SUCCESS = 0.99
 
 
+#: Largest stop thresholds of the guidance (deg, mm): beyond them the stop rule accepts a pose far from the
+#: reference (--threshold-deg 30 stopped with the source 242 mm away), which is no repositioning; a threshold
+#: of 30 there was likely arcminutes (30' = 0.5°, the default), and the refusal says so.
+MAX_THRESHOLD_DEG = 5.0
+MAX_THRESHOLD_MM = 50.0
+
+
 def _add_noise(parser: argparse.ArgumentParser) -> None:
     add_preset_argument(parser)
     parser.add_argument("--seed", type=integer(0), default=0, help="random seed (default 0)")
     parser.add_argument("--corner-noise-px", type=number(0, 100, unit="px"), default=0.2,
                         help="σ of the Gaussian noise on each detected corner, px (default 0.2)")
-    parser.add_argument("--threshold-mm", type=number(0, open_minimum=True, unit="mm"), default=2.0,
-                        help="stop when every prismatic joint's remaining move is below this, mm (default 2)")
-    parser.add_argument("--threshold-deg", type=number(0, open_minimum=True, unit="deg"), default=0.5,
-                        help="stop when every revolute joint's remaining move is below this, deg (default 0.5)")
+    parser.add_argument("--threshold-mm", type=number(0, MAX_THRESHOLD_MM, open_minimum=True, unit="mm"),
+                        default=2.0, help="stop when every prismatic joint's remaining move is below this, mm "
+                        f"(default 2, at most {MAX_THRESHOLD_MM:g})")
+    parser.add_argument("--threshold-deg", type=number(0, MAX_THRESHOLD_DEG, open_minimum=True, unit="deg",
+                                                       slips=(("arcmin", 1 / 60),)),
+                        default=0.5, help="stop when every revolute joint's remaining move is below this, deg "
+                        f"(default 0.5, at most {MAX_THRESHOLD_DEG:g})")
     parser.add_argument("--operator-relative", type=number(0, 1), default=0.1,
                         help="σ of the operator's relative error on each move, fraction (default 0.1)")
     parser.add_argument("--operator-mm", type=number(0, 1000, unit="mm"), default=1.0,
@@ -163,7 +174,10 @@ def _experiment(args) -> int:
 
     system = system_from_args(args)
     config = _config(args)
-    stats = ex.summary(ex.run_experiment(system, config, args.tasks, args.seed))
+    from tqdm import tqdm
+
+    with tqdm(total=args.tasks, unit="task", desc="reposition experiment", leave=False, file=sys.stderr) as bar:
+        stats = ex.summary(ex.run_experiment(system, config, args.tasks, args.seed, progress=lambda i: bar.update(1)))
     print(f"§4.6.2 repositioning, simulated: {system.name}, {args.tasks} tasks (seed {args.seed}), corner noise "
           f"{config.corner_noise_px} px, operator {args.operator_relative:.0%} + {args.operator_mm} mm / "
           f"{args.operator_deg}°, thresholds {args.threshold_mm} mm / {args.threshold_deg}°")

@@ -28,6 +28,7 @@ run, not this reproduction (it says so).
 from __future__ import annotations
 
 import argparse
+import sys
 
 from carmkin.errors import UsageError
 
@@ -87,15 +88,23 @@ def _grid(text, option: str, default) -> tuple:
 def run(args: argparse.Namespace) -> int:
     if args.png:
         args.png = plot_path(args.png, "--png")
+    from tqdm import tqdm
+
     from carmkin.reproduce import chapter3, error_model, fit, joints, repositioning, stitching, verdict
 
     system, model, out = system_from_args(args), _model(args), {}
     corner_grid = _grid(args.corner_noise_grid_px, "--corner-noise-grid-px", fit.CORNER_NOISE_GRID)
     operator_grid = _grid(args.operator_scale_grid, "--operator-scale-grid", fit.OPERATOR_SCALE_GRID)
+    # done/total on a terminal: the tables, then (all) each experiment's verdict rows
+    stages = {"all": 5 + len(verdict.EXPERIMENTS), "model": 1, "fit": 1}.get(args.table, 2)
+    bar = tqdm(total=stages, unit="table", desc=f"reproduce {args.table}", leave=False, file=sys.stderr)
 
     def verdict_of(*names, **options):
         """The verdict rows of ``names`` over --repeats, printed; kept for --json."""
-        rows = [row for name in names for row in verdict.EXPERIMENTS[name](system, model, args.repeats, **options)]
+        rows = []
+        for name in names:
+            rows += verdict.EXPERIMENTS[name](system, model, args.repeats, **options)
+            bar.update(1)
         print(verdict.format_verdict(rows))
         out.setdefault("verdict", []).extend(r.__dict__ for r in rows)
         out["counts"] = verdict.counts([verdict.Row(**r) for r in out["verdict"]])
@@ -104,6 +113,7 @@ def run(args: argparse.Namespace) -> int:
     if args.table in ("model", "all"):
         print(error_model.format_model(model))
         out["model"] = {name: value for name, value, _ in model.table()}
+        bar.update(1)
     if args.table in ("4.6.2", "all"):
         tasks = repositioning.run(system, model, args.tasks, args.seed, end=args.end)
         stats = repositioning.summary(tasks)
@@ -114,6 +124,7 @@ def run(args: argparse.Namespace) -> int:
         out["4.6.2"] = {k: v for k, v in stats.items()}
         out["4.6.2 joints"] = {k: (list(map(float, v)) if k != "joints" and hasattr(v, "__len__") else v)
                                for k, v in table.items()}
+        bar.update(1)
         if args.png and args.table == "4.6.2":
             joints.plot_decomposition(square, table).savefig(args.png)
             print(f"wrote {args.png}")
@@ -126,6 +137,7 @@ def run(args: argparse.Namespace) -> int:
                       "p_value": result.p_value, "reproduced": result.reproduced,
                       "region": [[p.corner_noise_px, p.operator_scale] for p in result.region],
                       "grid": [[p.corner_noise_px, p.operator_scale, p.chi2] for p in result.points]}
+        bar.update(1)
         if args.png:
             fit.plot_fit(result).savefig(args.png)
             print(f"wrote {args.png}")
@@ -133,21 +145,25 @@ def run(args: argparse.Namespace) -> int:
         rows = stitching.table(stitching.run(system, model, 5, args.seed))
         print(stitching.format_table(rows))
         out["4.6.3"] = rows
+        bar.update(1)
         if args.table == "4.6.3":
             verdict_of("4.6.3")
     if args.table in ("3.1", "all"):
         rows = chapter3.table_3_1(system, model, 2, args.seed, protocol=args.protocol)
         print(chapter3.format_table_3_1(rows))
         out["3.1"] = rows
+        bar.update(1)
         if args.table == "3.1":
             verdict_of("3.1", protocol=args.protocol)
     if args.table in ("3.2", "all"):
         result = chapter3.table_3_2(system, model, args.seed, protocol=args.protocol)
         print(chapter3.format_table_3_2(result))
         out["3.2"] = result
+        bar.update(1)
         if args.table == "3.2":
             verdict_of("3.2", protocol=args.protocol)
     if args.table == "all":
         verdict_of(*verdict.EXPERIMENTS)
+    bar.close()
     write_json(args, out)
     return 0

@@ -26,9 +26,9 @@ import numpy as np
 from carmkin.errors import UsageError
 from carmkin.model.motion import ACQUISITION_TIME_RANGE
 
-from ._common import JOINTS_FLAG, MIN_DISTANCE_MM, MM_PER_M, add_joints_argument, add_json_argument, add_png_argument, \
-    add_preset_argument, integer, joints_json, number, output_path, parse_joints, parse_numbers, plot_path, \
-    system_from_args, unit_slip, write_json
+from ._common import JOINTS_FLAG, MIN_DISTANCE_MM, MM_PER_M, add_joints_argument, add_json_argument, \
+    add_margin_argument, add_png_argument, add_preset_argument, integer, joints_json, number, output_path, \
+    parse_joints, parse_numbers, plot_path, system_from_args, unit_slip, write_json
 
 #: Sizes of a box patient along each axis (mm): a newborn's limb to the longest body; outside, a unit slip
 #: (0.5,0.3,1.6 given in m) refused, naming it.
@@ -52,8 +52,7 @@ def _plan_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--distance-mm", type=number(MIN_DISTANCE_MM, 10000.0, unit="mm"), default=None,
                         help="source-to-target distance (mm, default the source-to-orbital-axis distance)")
     parser.add_argument("--plain", action="store_true", help="plan the plain joint rotation (no compensation)")
-    parser.add_argument("--margin-mm", type=number(0.0, 1000.0, unit="mm"), default=10.0,
-                        help="clearance kept along the whole arc (mm, default 10)")
+    add_margin_argument(parser, "clearance kept along the whole arc")
     parser.add_argument("--patient-box-mm", metavar="W,H,L[,X,Y,Z]",
                         help="box patient: full size (mm) along table X, Y, Z and its centre (mm, default 0,0,0)")
     parser.add_argument("--acquisition-time-s", type=number(*ACQUISITION_TIME_RANGE, unit="s"), default=None,
@@ -114,7 +113,7 @@ def _plan(args, system):
     from carmkin.sweeps import plan_sweep
 
     q_start = parse_joints(args.q_mm_deg, system, JOINTS_FLAG) if args.q_mm_deg else None
-    return plan_sweep(system, parse_numbers(args.target_mm, 3, "--target-mm") / MM_PER_M, args.arc_deg, args.views,
+    return plan_sweep(system, parse_numbers(args.target_mm, 3, "--target-mm", unit="mm") / MM_PER_M, args.arc_deg, args.views,
                       patient=_patient(args.patient_box_mm), q_start=q_start, joint=_joint(args.joint),
                       distance=None if args.distance_mm is None else args.distance_mm / MM_PER_M,
                       compensate=not args.plain, margin=args.margin_mm / MM_PER_M,
@@ -210,6 +209,9 @@ def _html(sweep, path) -> None:
 
 
 def _reconstruct(args, system) -> int:
+    from carmkin.extras import check_installed
+
+    check_installed("itk", "cbct")  # before the plan: without RTK the reconstruction is refused at once
     from carmkin.sweeps import reconstruct as rc
 
     plot = plot_path(args.png, "--png") if args.png else None

@@ -12,7 +12,7 @@ HELP = "write the URDF of a preset (to stdout or -o FILE)"
 
 def register(parser: argparse.ArgumentParser) -> None:
     add_preset_argument(parser)
-    parser.add_argument("-o", "--output", help="file to write, its folder created if missing (default: standard output)")
+    parser.add_argument("-o", "--output", help="file to write; its folder must exist (default: standard output)")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -137,6 +137,9 @@ def run(args: argparse.Namespace) -> int:
         args.html = output_path(args.html, "--html", ("html", "htm"))
     if args.png:
         args.png = output_path(args.png, "--png", ("png",))
+        from carmkin.viz.screenshot import find_chromium
+
+        find_chromium()  # a PNG needs a Chromium: said before the scene is built
     patient = patient_from_args(system, args)
     if patient is not None:
         print(f"table top: upper surface at Y0 = {table_top_y(system) * MM_PER_M:+.1f} mm (Y0 points down); patient: "

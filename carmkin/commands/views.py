@@ -31,13 +31,13 @@ HELP = "plan clinical views (LAO/RAO, CRA/CAU) around a patient, map reachable v
 MM = 1000.0
 
 
-def _common(parser: argparse.ArgumentParser) -> None:
+def _common(parser: argparse.ArgumentParser, target_default: str | None = "0,0,0") -> None:
     common.add_preset_argument(parser)
-    parser.add_argument("--target-mm", metavar="X,Y,Z", default="0,0,0",
-                        help="the point the beam passes through, table frame (mm, default 0,0,0)")
+    parser.add_argument("--target-mm", metavar="X,Y,Z", default=target_default,
+                        help="the point the beam passes through, table frame (mm, default "
+                        + (target_default or "the centreline's midpoint") + ")")
     _scene.add_patient_arguments(parser, default="parametric")
-    parser.add_argument("--margin-mm", type=common.number(0.0, 1000.0, unit="mm"), default=20.0,
-                        help="clearance every moving part keeps (mm, default 20)")
+    common.add_margin_argument(parser)
 
 
 def register(parser: argparse.ArgumentParser) -> None:
@@ -77,8 +77,7 @@ def register(parser: argparse.ArgumentParser) -> None:
     cmap.set_defaults(action_run=_map)
     best = sub.add_parser("optimal", help="the best reachable view of a vessel (foreshortening, overlap)",
                           description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    _common(best)
-    best.set_defaults(target_mm=None)
+    _common(best, target_default=None)
     best.add_argument("--centreline", metavar="FILE.csv", required=True,
                       help="the vessel of interest: x,y,z (mm) a row, optional radius (mm)")
     best.add_argument("--others", metavar="FILE.csv", nargs="+", action="extend", default=[],
@@ -118,7 +117,7 @@ def _plan(args: argparse.Namespace) -> int:
                   f"  [{v.source}]")
         return 0
     system = common.system_from_args(args)
-    target = common.parse_numbers(args.target_mm, 3, "--target-mm") / MM
+    target = common.parse_numbers(args.target_mm, 3, "--target-mm", unit="mm") / MM
     patient = _patient(system, args)
     position = patient if patient is not None else args.patient_position
     distance = None if args.distance_mm is None else args.distance_mm / MM
@@ -129,7 +128,7 @@ def _plan(args: argparse.Namespace) -> int:
         if args.distance_mm is not None or args.rotation_deg is not None:
             raise common.UsageError("--segment-mm searches the distance and the roll: give no --distance-mm or "
                                     "--rotation-deg")
-        ends = common.parse_numbers(args.segment_mm, 6, "--segment-mm") / MM
+        ends = common.parse_numbers(args.segment_mm, 6, "--segment-mm", unit="mm") / MM
         prefer = None
         if args.primary_deg is not None:
             prefer = View.from_angles(args.primary_deg, args.secondary_deg, ends[:3], position)
@@ -156,7 +155,9 @@ def _report(args, system, plan, position) -> int:
     patient = None if isinstance(position, str) else position
     print(_scene.describe_scene(system, plan.view.target, patient, getattr(patient, "position", position)))
     _print_plan(system, plan, position)
-    common.write_json(args, {"preset": system.name, **_plan_json(system, plan, position)})
+    common.write_json(args, {"preset": system.name, "target_mm": list(np.asarray(plan.view.target) * MM),
+                             "patient": _scene.patient_json(patient, getattr(patient, "position", position)),
+                             "margin_mm": args.margin_mm, **_plan_json(system, plan, position)})
     shown = plan.q if plan.success else (plan.nearest.q if plan.nearest is not None else None)
     if shown is not None:
         _scene.write_figures(args, system, shown, patient, plan.view.target,
@@ -233,7 +234,7 @@ def _map(args: argparse.Namespace) -> int:
     from carmkin.views import reach_map
 
     system = common.system_from_args(args)
-    target = common.parse_numbers(args.target_mm, 3, "--target-mm") / MM
+    target = common.parse_numbers(args.target_mm, 3, "--target-mm", unit="mm") / MM
     primary = _range(args.primary_range_deg, "--primary-range-deg", args.step_deg)
     secondary = _range(args.secondary_range_deg, "--secondary-range-deg", args.step_deg)
     paths = {k: v for k, v in (("plot", args.png and common.plot_path(args.png, "--png")),
@@ -246,7 +247,7 @@ def _map(args: argparse.Namespace) -> int:
                   margin=args.margin_mm / MM, workers=args.workers)
     print(f"preset {system.name}: {int(m.reachable.sum())} of {m.reachable.size} views reachable "
           f"({100 * m.fraction:.1f} %), primary {primary[0]:g}..{primary[-1]:g}°, secondary "
-          f"{secondary[0]:g}..{secondary[-1]:g}° at {args.step_deg:g}°")
+          f"{secondary[0]:g}..{secondary[-1]:g}° at {args.step_deg:g}°, margin {args.margin_mm:g} mm")
     for binding in ("angular/orbital", "translations", "wigwag", "contact"):
         count = int(np.sum(m.binding == binding))
         if count:
@@ -269,7 +270,8 @@ def _map(args: argparse.Namespace) -> int:
                   "binding": str(m.binding[i, j]),
                   "q": common.joints_json(system, m.q[i, j]) if m.reachable[i, j] else None}
                  for i, p in enumerate(m.primary_deg) for j, s in enumerate(m.secondary_deg)]
-        common.write_json(args, {"preset": system.name, "target_mm": list(target * MM), "cells": cells})
+        common.write_json(args, {"preset": system.name, "target_mm": list(target * MM), "margin_mm": args.margin_mm,
+                                 "patient": _scene.patient_json(patient, args.patient_position), "cells": cells})
     return 0
 
 
@@ -289,6 +291,7 @@ def _compare(args, system, target, primary, secondary, patient, paths) -> int:
     motorized = system.replace(table=dataclasses.replace(system.table, joints=joints))
     maps = compare_maps(system, target, primary, secondary, patient, motorized=motorized,
                         position=patient or args.patient_position, margin=args.margin_mm / MM, workers=args.workers)
+    print(f"preset {system.name}, margin {args.margin_mm:g} mm:")
     for label, m in maps.items():
         print(f"{label}: {int(m.reachable.sum())} of {m.reachable.size} views reachable ({100 * m.fraction:.1f} %)")
     if "plot" in paths:
@@ -335,24 +338,26 @@ def _optimal(args: argparse.Namespace) -> int:
     line = _read_centreline(args.centreline, "--centreline", args.frame, patient, args.patient_position)
     others = [_read_centreline(f, "--others", args.frame, patient, args.patient_position)
               for f in args.others]
-    target = None if args.target_mm is None else common.parse_numbers(args.target_mm, 3, "--target-mm") / MM
+    target = None if args.target_mm is None else common.parse_numbers(args.target_mm, 3, "--target-mm", unit="mm") / MM
     m = optimal_view_map(system, line, primary, secondary, patient, [o.points for o in others], target,
                          radius=args.radius_mm / MM, weights=weights, margin=args.margin_mm / MM, position=position,
                          workers=args.workers)
     if args.json != common.STDOUT:
-        _print_optimal(system, m, primary, secondary, args.step_deg)
+        _print_optimal(system, m, primary, secondary, args.step_deg, args.margin_mm)
     if png:
         from carmkin.views.optimal_figure import optimal_map_figure
 
         optimal_map_figure(m).savefig(png)
         print(f"wrote {png}")
-    common.write_json(args, _optimal_json(system, m))
+    common.write_json(args, {**_optimal_json(system, m), "margin_mm": args.margin_mm,
+                             "patient": _scene.patient_json(patient, args.patient_position)})
     return 0 if m.best_reachable is not None else 1
 
 
-def _print_optimal(system, m, primary, secondary, step) -> None:
+def _print_optimal(system, m, primary, secondary, step, margin_mm) -> None:
     print(f"preset {system.name}: {int(m.reachable.sum())} of {m.reachable.size} views reachable, primary "
-          f"{primary[0]:g}..{primary[-1]:g}°, secondary {secondary[0]:g}..{secondary[-1]:g}° at {step:g}°; target "
+          f"{primary[0]:g}..{primary[-1]:g}°, secondary {secondary[0]:g}..{secondary[-1]:g}° at {step:g}°, margin "
+          f"{margin_mm:g} mm; target "
           f"{np.round(m.target * MM, 1).tolist()} mm; score = {m.weights[0]:g} foreshortening + {m.weights[1]:g} overlap")
     print(f"{'view':20s} {'primary':>8s} {'secondary':>9s} {'foreshort.':>10s} {'worst':>7s} {'overlap':>8s} "
           f"{'score':>7s} {'clearance':>10s}")

@@ -12,8 +12,9 @@ tables (:mod:`carmkin.studies.table_workspace`; preset default ``siremobile-iso-
 of ``--poses`` random desired poses reachable with the C-arm alone, + d0, + the three table translations, +
 all table joints; JSON ``{"<model>": {"fraction": x, "reached": int, "poses": int}}``.
 
-JSON: {"<translation_mm>": {"<joint>": {"K": int, "mean": x, "std": x, "max": x, "min": x}}} with joints
-vertical, wigwag, horizontal, angular, orbital (mm or degrees).
+JSON: {"translations_mm": {"<d0 in mm>": {"<joint>_<unit>": {"K": int, "mean": x, "std": x, "max": x,
+"min": x}}}} with joints vertical_mm, wigwag_deg, horizontal_mm, angular_deg, orbital_deg (the statistics in
+that unit; K a count).
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from ._common import (
     add_json_argument,
     add_png_argument,
     add_preset_argument,
+    check_unit_slip,
     integer,
     number,
     plot_path,
@@ -115,6 +117,8 @@ def run(args: argparse.Namespace) -> int:
     system = system_from_args(args)
     translations = workspace.PAPER_GRID.translations_mm if args.translations_mm is None else args.translations_mm
     d0 = system.joint_ranges[0]
+    check_unit_slip("--translations-mm", " ".join(f"{t:g}" for t in translations), translations,
+                    ranges_mm=[[d0.lower * MM_PER_M, d0.upper * MM_PER_M]] * len(translations))
     for value in translations:
         if d0.excess(value / MM_PER_M) != 0.0:
             raise UsageError(f"--translations-mm {value:g} is outside the table translation range "
@@ -125,6 +129,11 @@ def run(args: argparse.Namespace) -> int:
         result = workspace.run_study(system, grid, tolerance=args.tolerance, progress=bar.update)
     print(f"preset {system.name}: {n} poses ({n // len(grid.translations_mm)} per translation), "
           f"{'isocentric closed form' if system.carm.is_isocentric else 'general polynomial'} 5-DOF IK")
+    held = system.joint_names[1:system.nq - 5]  # the joints between d0 and the C-arm's five: table (and mount)
+    if held:
+        print(f"note: preset {system.name} has {system.nq} joints; Table 4.5's study moves only the table translation "
+              f"and the C-arm's five and holds {', '.join(held)} at 0, so these are the numbers of its 6-joint chain "
+              "(--table-dofs studies the other joints)")
     _print_table(result)
     worst = max(r.max_residual for r in result.results)
     unsolved = sum(r.unsolved for r in result.results)

@@ -215,6 +215,17 @@ def _read_label(name_or_path: str) -> str:
     return _builtin_file(name_or_path, "preset")
 
 
+def biplane_planes(name_or_path: str | Path) -> dict[str, str] | None:
+    """``{"frontal": ..., "lateral": ...}``: the one-plane presets (names or paths) a biplane preset names, or
+    ``None`` for a one-plane preset (which :func:`load_preset` reads whole). Lets a caller that models one plane
+    refuse a biplane preset rather than drop its lateral plane (the command line does)."""
+    _check_name(name_or_path)
+    label = _read_label(str(name_or_path))
+    if not _biplane.is_biplane(_toml(Path(label).read_text(), label)):
+        return None
+    return _biplane_file(label)[1]
+
+
 def read_biplane(name_or_path: str | Path):
     """Both planes of a biplane preset (built-in name or ``.toml`` path) as a
     :class:`~carmkin.model.biplane.Biplane`: the frontal plane's preset, the lateral plane's preset placed by

@@ -123,8 +123,11 @@ class StudyResult:
     results: tuple[TranslationResult, ...] = field(default_factory=tuple)
 
     def as_json(self) -> dict:
-        """``{"<translation_mm>": {"<joint>": {"K", "mean", "std", "max", "min"}}}`` (mm or degrees)."""
-        return {translation_key(r.translation): {j: r.joints[j].as_dict() for j in JOINTS} for r in self.results}
+        """``{"translations_mm": {"<d0 in mm>": {"<joint>_<unit>": {"K", "mean", "std", "max", "min"}}}}``: the
+        unit in each key (joints ``vertical_mm``, ``wigwag_deg``, ...: mean, std, max and min in that unit; K a
+        count), as the command line's JSON keys."""
+        return {"translations_mm": {translation_key(r.translation): {f"{j}_{UNITS[j][0]}": r.joints[j].as_dict()
+                                                                      for j in JOINTS} for r in self.results}}
 
     @property
     def fraction_5dof(self) -> float:

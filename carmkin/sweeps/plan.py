@@ -183,7 +183,13 @@ class Sweep:
                  f"{math.degrees(self.joint_extent[1]):+.1f}° (limited by {self.limiting_joint})",
                  f"short scan: {self.short_scan}"]
         lines += _timing_lines(self)
-        lines.append("feasible" if self.success else f"NOT feasible: {self.failure}")
+        if not self.success:
+            lines.append(f"NOT feasible: {self.failure}")
+        elif self.timing is not None and self.timing.status is motion.Follow.TOO_FAST:
+            lines.append(f"NOT feasible at a {self.timing.acquisition_time:g} s acquisition: {self.timing.joint} "
+                         "cannot follow it (the arc itself is clear and in range)")
+        else:
+            lines.append("feasible")
         return "\n".join(lines)
 
 

@@ -6,7 +6,10 @@ the build (``mkdocs build --strict`` then exits non-zero). The executed copy is 
 ``docs/notebooks/`` (git-ignored), which mkdocs-jupyter renders as it is (``execute: false`` in mkdocs.yml:
 the execution happened here). Executed copies are cached in ``build/notebooks/`` under a hash of the
 notebook and of carmkin's sources (the CLI's modules aside), so an unchanged notebook is not run twice
-(``tests/test_notebooks.py`` reads the same cache). Every notebook and every docs page missing from ``nav``
+(``tests/test_notebooks.py`` reads the same cache). A notebook that needs an extra the build's environment
+lacks (its metadata ``carmkin.needs``: ``[module, extra]`` pairs, see :func:`missing_extra`) is not executed:
+the site shows its code under a note naming the extra, and the build says so (``python -m pip install -e
+".[docs]" && python -m mkdocs build --strict``, the README's docs command, needs no other extra). Every notebook and every docs page missing from ``nav``
 is appended to it, so a new page or notebook is in the site without an edit of mkdocs.yml (add a nav line to
 place it elsewhere), and a new package of carmkin that no page of docs/api/ documents gets a generated API
 page.
@@ -34,6 +37,39 @@ log = logging.getLogger("mkdocs.hooks.notebooks")
 
 def notebook_paths() -> list[Path]:
     return sorted(NOTEBOOKS.glob("[0-9][0-9]_*.ipynb"))
+
+
+def needs(path: Path) -> list[tuple[str, str]]:
+    """The ``(module, extra)`` pairs notebook ``path`` cannot run without: its metadata ``carmkin.needs``
+    (stated once, in the notebook; the site build and ``pytest --nbmake`` (tests/conftest.py) both read it)."""
+    import json
+
+    metadata = json.loads(path.read_text()).get("metadata", {})
+    return [(module, extra) for module, extra in metadata.get("carmkin", {}).get("needs", ())]
+
+
+def missing_extra(path: Path) -> str | None:
+    """Why notebook ``path`` cannot run here (``"needs pyarrow (extra datasets)"``: the first of its
+    :func:`needs` whose module is absent), or None when it can."""
+    from importlib.util import find_spec
+
+    for module, extra in needs(path):
+        if find_spec(module) is None:
+            return f"needs {module} (extra {extra})"
+    return None
+
+
+def unexecuted_copy(path: Path, reason: str) -> str:
+    """Notebook ``path`` as committed (no outputs) under a first cell saying why this build did not run it."""
+    import nbformat
+
+    notebook = nbformat.read(path, as_version=4)
+    extras = sorted({extra.split(":")[0] for _, extra in needs(path)})
+    install = "python -m pip install -e \".[" + ",".join(extras) + "]\""
+    note = (f"> **Not executed in this build of the site.** This notebook {reason}, which the environment that "
+            f"built the site lacks: its code is shown without outputs. Run it after `{install}`.")
+    notebook.cells.insert(0, nbformat.v4.new_markdown_cell(note))
+    return nbformat.writes(notebook)
 
 
 def _sources_digest() -> str:
@@ -138,11 +174,18 @@ def on_pre_build(config):
 
     paths = notebook_paths()
     start = time.perf_counter()
+    absent = {p: reason for p in paths if (reason := missing_extra(p))}
     try:
-        done = execute_all(paths)
+        done = execute_all([p for p in paths if p not in absent])
     except Exception as exc:  # a failing cell: the build fails, naming the notebook and the cell
         raise PluginError(f"a notebook failed to execute: {exc}") from exc
     SITE_COPY.mkdir(exist_ok=True)
+    for notebook, reason in absent.items():
+        text = unexecuted_copy(notebook, reason)
+        copy = SITE_COPY / notebook.name
+        if not copy.exists() or copy.read_text() != text:
+            copy.write_text(text)
+        log.info(f"{notebook.name}: not executed, shown without outputs: it {reason}")
     for notebook, (executed, seconds) in done.items():
         copy = SITE_COPY / notebook.name
         if not copy.exists() or copy.read_bytes() != executed.read_bytes():
@@ -151,7 +194,7 @@ def on_pre_build(config):
     for stray in SITE_COPY.glob("*.ipynb"):
         if not (NOTEBOOKS / stray.name).exists():
             stray.unlink()
-    log.info(f"{len(paths)} notebooks ready in {time.perf_counter() - start:.1f} s")
+    log.info(f"{len(paths)} notebooks ready ({len(absent)} not executed for a missing extra) in {time.perf_counter() - start:.1f} s")
 
 
 def on_files(files, config):

@@ -28,6 +28,7 @@ from carmkin.commands._common import (
     read_pose,
 )
 from carmkin.errors import InvalidConfigurationError, InvalidPoseError
+from hang import HANG_GUARD_S
 
 PLAIN = carmkin.load_preset("siremobile-iso-c3d")
 MOTORIZED = carmkin.load_preset("siremobile-iso-c3d-motorized-table")
@@ -127,7 +128,7 @@ def test_closed_form_commands_refuse_the_motorized_preset_in_one_line(argv, alte
 def test_refusal_has_no_traceback_as_a_process():
     """The installed entry point, as a user types it: one line on stderr, exit 2."""
     run = subprocess.run([sys.executable, "-m", "carmkin.cli", "singularity", "--preset", MOTORIZED.name],
-                         capture_output=True, text=True, timeout=120)
+                         capture_output=True, text=True, timeout=HANG_GUARD_S)
     assert run.returncode == 2 and run.stdout == ""
     assert_one_line_error(run.stderr, "carmkin singularity: error:")
 
@@ -138,6 +139,13 @@ def test_refusal_has_no_traceback_as_a_process():
 def test_joint_values_round_trip_through_the_command_line_units(data, name):
     system = PRESETS[name]
     q = data.draw(in_range(system))
+    prismatic = np.asarray(system.prismatic, dtype=bool)
+    lengths_mm = q[prismatic] * 1000.0
+    ranges_mm = np.array([[r.lower, r.upper] for r in system.joint_ranges])[prismatic] * 1000.0
+    if _common.metres_slip(lengths_mm, ranges_mm):  # read as metres by the unit-slip rule: refused, naming them
+        with pytest.raises(InvalidConfigurationError, match="given in m"):
+            parse_joints(cli_values(system, q), system, "--q")
+        return
     np.testing.assert_allclose(parse_joints(cli_values(system, q), system, "--q"), q, rtol=1e-14, atol=1e-15)
     printed = joints_json(system, q)
     assert list(printed) == [f"{n}_{'mm' if p else 'deg'}" for n, p in zip(system.joint_names, system.prismatic)]
@@ -423,7 +431,7 @@ def test_help_lists_every_command_and_loads_no_heavy_library():
             "    try: main(['--help'])\n    except SystemExit: pass\n"
             "heavy = [m for m in ('pinocchio', 'coal', 'qpsolvers', 'matplotlib', 'meshcat', 'scipy') "
             "if m in sys.modules]\nprint(heavy, out.getvalue())")
-    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=HANG_GUARD_S)
     assert run.returncode == 0, run.stderr
     assert run.stdout.startswith("[] ")
     for command in ("verify", "ik", "urdf", "workspace", "singularity", "panorama", "view"):

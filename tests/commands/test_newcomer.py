@@ -15,6 +15,7 @@ import carmkin
 from carmkin.cli import BROKEN_PIPE, main
 from carmkin.commands._common import format_joints
 from test_cli import assert_one_line_error, cli  # noqa: E402 (tests/commands is on sys.path)
+from hang import HANG_GUARD_S
 
 PLAIN = carmkin.load_preset("siremobile-iso-c3d")
 
@@ -78,7 +79,7 @@ def test_view_refuses_bad_input_before_loading_the_viewer(tmp_path):
     code = ("import sys; from carmkin.cli import main; "
             "rc = main(['view', '--preset', 'nosuch.toml', '--html', 'v.html']); "
             "print(rc, 'meshcat' in sys.modules)")
-    done = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    done = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=HANG_GUARD_S)
     assert done.stdout.split() == ["2", "False"], done.stdout + done.stderr
 
 

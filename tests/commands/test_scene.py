@@ -121,3 +121,44 @@ def test_carmkin_view_says_and_draws_the_same_collision(tmp_path, capsys):
     assert said, out
     named = set(said.group(1).split(", "))
     assert named == colliding_bodies(COLLIDING, ParametricPatient.on_table(SYSTEM)) == collided_paths(page.read_text())
+
+
+# --- the C-arm's bodies, not only its frame origins (issue "The first hour, again": an end view drew a line
+# through the patient while the text reported 150-240 mm of clearance) --------------------------------------
+def carm_patches(ax) -> dict[str, object]:
+    return {p.get_gid()[5:]: p for p in ax.patches if str(p.get_gid()).startswith("carm:")}
+
+
+def test_the_scene_figure_draws_the_source_housing_and_the_detector_where_they_are():
+    """The source lies inside the outline of its housing and the detector centre inside the detector's, in both
+    views (the FK's source and detector: an independent route from the collision model's boxes)."""
+    from matplotlib.path import Path as Outline
+
+    q = np.array([0.0, 0.2, 0.0, 0.1, np.radians(30.0), np.radians(20.0)])
+    fig = carmkin.plots.scene_figure(SYSTEM, q)
+    T = SYSTEM.fk(q)
+    source, detector = T[:3, 3], T[:3, 3] + SYSTEM.carm.source_to_detector * T[:3, 2]
+    for ax, axis in zip(fig.axes, (2, 0)):
+        parts = carm_patches(ax)
+        assert {"xray_source_0", "detector_0"} <= set(parts) and len(parts) >= 10
+        housing = Outline(parts["xray_source_0"].get_xy())
+        assert housing.contains_point((source[axis] * 1e3, source[1] * 1e3))
+        panel = [Outline(p.get_xy()) for n, p in parts.items() if n.startswith("detector")]
+        # the detector centre lies on the detector's face: inside or on the outline of one of its boxes
+        assert any(o.contains_point((detector[axis] * 1e3, detector[1] * 1e3), radius=1.0) for o in panel)
+
+
+@pytest.mark.parametrize("q", [COLLIDING, CLEAR], ids=["colliding", "clear"])
+def test_the_scene_figure_fills_red_exactly_the_carm_parts_in_collision(q):
+    from matplotlib.colors import to_hex
+
+    from carmkin.world import World
+
+    patient = ParametricPatient.on_table(SYSTEM)
+    world = World(SYSTEM, patient)
+    hit = {a for (a, _), d in zip(world.pairs, world.distances(q=q).tolist()) if d <= 0.0}
+    fig = carmkin.plots.scene_figure(SYSTEM, q, patient)
+    for ax in fig.axes:
+        red = {n for n, p in carm_patches(ax).items()
+               if to_hex(p.get_facecolor()) == carmkin.plots.SCENE_COLOURS["collision"]}
+        assert red == hit and bool(red) == (q is COLLIDING)

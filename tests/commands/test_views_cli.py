@@ -7,11 +7,12 @@ import sys
 import pytest
 
 from carmkin.cli import main
+from hang import HANG_GUARD_S
 
 
 def run(*args):
     return subprocess.run([sys.executable, "-m", "carmkin.cli", "views", *args], capture_output=True, text=True,
-                          timeout=300)
+                          timeout=HANG_GUARD_S)
 
 
 def test_plan_prints_joints_and_clearance(capsys):
@@ -94,3 +95,49 @@ def test_map_compare_prints_three_maps_and_plots(tmp_path, capsys):
                                                        "+ motorized table (11 DOF, 11 table poses)"]
     assert plot.stat().st_size
     assert run("map", "--compare", "--html", str(tmp_path / "x.html")).returncode == 2
+
+
+# --- the one default margin (issue "The first hour, again": views defaulted to 20 mm, everything else to 10) -----
+@pytest.mark.parametrize("action", [["plan"], ["map"], ["optimal", "--centreline", "c.csv"]])
+def test_views_default_to_the_one_default_margin(action):
+    import carmkin
+    from carmkin.cli import build_parser
+
+    args = build_parser().parse_args(["views", *action])
+    assert args.margin_mm == pytest.approx(carmkin.DEFAULT_MARGIN * 1000.0)
+
+
+@pytest.mark.parametrize("command", [["sweep", "plan"], ["biplane", "plan"]])
+def test_the_other_planners_default_to_the_same_margin(command):
+    import carmkin
+    from carmkin.cli import build_parser
+
+    args = build_parser().parse_args(command)
+    assert args.margin_mm == pytest.approx(carmkin.DEFAULT_MARGIN * 1000.0)
+
+
+def test_the_map_says_which_margin_its_text_and_json_used(tmp_path, capsys):
+    out_json = tmp_path / "m.json"
+    assert main(["views", "map", "--step-deg", "45", "--patient", "none", "--json", str(out_json)]) == 0
+    assert "margin 10 mm" in capsys.readouterr().out.splitlines()[0]
+    data = json.loads(out_json.read_text())
+    assert data["margin_mm"] == 10.0 and data["patient"] == {"model": "none", "position": "HFS"}
+    assert main(["views", "map", "--step-deg", "45", "--patient", "none", "--margin-mm", "25", "--json", "-"]) == 0
+    assert json.loads(capsys.readouterr().out)["margin_mm"] == 25.0
+
+
+def test_plan_json_names_target_patient_and_margin(capsys):
+    assert main(["views", "plan", "--primary-deg", "30", "--secondary-deg", "20", "--target-mm", "0,-100,0",
+                 "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["target_mm"] == pytest.approx([0.0, -100.0, 0.0])
+    assert data["margin_mm"] == 10.0
+    assert data["patient"] == {"model": "parametric", "position": "HFS", "height_mm": pytest.approx(1750.0),
+                               "mass_kg": 75.0}
+
+
+def test_optimal_help_names_the_centreline_midpoint_as_the_target_default(capsys):
+    with pytest.raises(SystemExit):
+        main(["views", "optimal", "--help"])
+    help_text = " ".join(capsys.readouterr().out.split())
+    assert "default the centreline's midpoint" in help_text and "default 0,0,0" not in help_text

@@ -29,6 +29,7 @@ from carmkin.datasets import shards  # noqa: E402
 from carmkin.errors import DatasetError, MissingExtraError, RenderingError  # noqa: E402
 from carmkin.interop import drr  # noqa: E402
 from carmkin.patient import ParametricPatient  # noqa: E402
+from hang import HANG_GUARD_S
 
 try:
     drr.bundled_ct_path()
@@ -180,7 +181,7 @@ datasets.generate(spec, sys.argv[1], executor="local", progress=False)
 def test_a_killed_run_resumes_without_duplicated_missing_or_truncated_rows(reference, tmp_path):
     out = tmp_path / "killed"
     process = subprocess.Popen([sys.executable, "-c", SCRIPT, str(out)])
-    deadline = time.monotonic() + 120
+    deadline = time.monotonic() + HANG_GUARD_S
     while time.monotonic() < deadline and not (out / "shard-00000-of-00003.parquet").exists():
         time.sleep(0.05)
     os.kill(process.pid, signal.SIGKILL)  # mid-run: shard 0 written, shard 1 being made or written

@@ -179,11 +179,11 @@ def test_bad_grid_raises():
 def test_cli_writes_json_and_plot(tmp_path, capsys):
     out, png = tmp_path / "ws.json", tmp_path / "ws.png"
     assert cli.main(["workspace", "--translations-mm", "0", "250", "--json", str(out), "--png", str(png)]) == 0
-    data = json.loads(out.read_text())
+    data = json.loads(out.read_text())["translations_mm"]  # every key names its unit
     assert list(data) == ["0", "250"]
-    assert list(data["250"]) == ["vertical", "wigwag", "horizontal", "angular", "orbital"]
-    assert data["250"]["wigwag"]["K"] == 5733 and isinstance(data["250"]["wigwag"]["K"], int)
-    assert data["250"]["horizontal"]["max"] == pytest.approx(62.32, abs=0.01)
+    assert list(data["250"]) == ["vertical_mm", "wigwag_deg", "horizontal_mm", "angular_deg", "orbital_deg"]
+    assert data["250"]["wigwag_deg"]["K"] == 5733 and isinstance(data["250"]["wigwag_deg"]["K"], int)
+    assert data["250"]["horizontal_mm"]["max"] == pytest.approx(62.32, abs=0.01)
     assert png.stat().st_size > 10_000
     text = capsys.readouterr().out
     assert "24570 poses (12285 per translation)" in text.splitlines()[0]

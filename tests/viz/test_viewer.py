@@ -44,6 +44,7 @@ from carmkin.commands._common import parse_joints
 from carmkin.robot.collision import CARM_EXCLUDED_PAIRS, link_of
 from carmkin.world import World
 from carmkin.errors import InvalidConfigurationError, InvalidPoseError
+from hang import HANG_GUARD_S
 
 # RGB of the xacro materials (urdf/carm_table.urdf.xacro), typed here from the file, not from carmkin.viz.
 XACRO_COLORS = {
@@ -445,13 +446,13 @@ def test_loopback_server_listens_on_127_0_0_1_only_and_stops_cleanly():
         assert {port for _, port in ours} == {http_port, zmq_port}
         assert all(is_loopback(address) for address, _ in ours), ours
         assert server.bound_addresses() == [("127.0.0.1", http_port)]
-        with urllib.request.urlopen(server.web_url, timeout=10) as response:
+        with urllib.request.urlopen(server.web_url, timeout=HANG_GUARD_S) as response:
             assert response.status == 200 and b"meshcat" in response.read().lower()
     finally:
         server.stop()
     assert not server.running
     # libzmq releases a closed socket in its own I/O thread: wait (bounded) until nothing of ours listens
-    deadline = time.monotonic() + 5.0
+    deadline = time.monotonic() + HANG_GUARD_S
     while set(listening_sockets(os.getpid())) - before and time.monotonic() < deadline:
         time.sleep(0.05)
     assert set(listening_sockets(os.getpid())) - before == set()
@@ -495,22 +496,22 @@ def _pump(stream, lines: queue.Queue) -> None:
 
 
 def test_carmkin_view_serves_on_loopback_only_and_exits_on_sigterm():
-    process = subprocess.Popen([sys.executable, "-u", "-m", "carmkin.cli", "view", "--serve-seconds", "120"],
+    process = subprocess.Popen([sys.executable, "-u", "-m", "carmkin.cli", "view", "--serve-seconds", str(int(HANG_GUARD_S))],
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     lines: queue.Queue = queue.Queue()
     threading.Thread(target=_pump, args=(process.stdout, lines), daemon=True).start()
     try:
-        line = _read_line(lines, r"http://127\.0\.0\.1:\d+/static/", timeout=60)
+        line = _read_line(lines, r"http://127\.0\.0\.1:\d+/static/", timeout=HANG_GUARD_S)
         port = int(re.search(r"127\.0\.0\.1:(\d+)", line).group(1))
         sockets = listening_sockets(process.pid)
         assert port in {p for _, p in sockets}
         assert sockets and all(is_loopback(address) for address, _ in sockets), sockets
         process.send_signal(signal.SIGTERM)
-        assert process.wait(timeout=30) == 0
-        _read_line(lines, "viewer stopped", timeout=10)
+        assert process.wait(timeout=HANG_GUARD_S) == 0
+        _read_line(lines, "viewer stopped", timeout=HANG_GUARD_S)
     finally:
         if process.poll() is None:
             process.kill()
-            process.wait(timeout=10)
+            process.wait(timeout=HANG_GUARD_S)
         process.stdout.close()
         process.stderr.close()
