@@ -17,6 +17,15 @@ PRESET = carmkin.load_preset("siremobile-iso-c3d")
 
 finite = dict(allow_nan=False, allow_infinity=False)
 
+#: The KR 210 R3100-2 as ROS-Industrial publishes it (kr210_r3100-2_macro.xacro): each joint's axis and a point
+#: of it (mm) in the robot base frame with every joint at the URDF's zero, and its limits (deg).
+KR210 = [((0, 0, -1), (0, 0, 645), (-185, 185)), ((0, 1, 0), (330, 0, 645), (-140, -5)),
+         ((0, 1, 0), (1680, 0, 645), (-120, 168)), ((-1, 0, 0), (3100, 0, 760), (-350, 350)),
+         ((0, 1, 0), (3100, 0, 760), (-122.5, 122.5)), ((-1, 0, 0), (3340, 0, 760), (-350, 350))]
+#: The robotic-carm preset's rest pose in the URDF's angles (deg, docs/PRESETS.md): the elbow folded up, the
+#: flange level. The preset's joint values are the URDF's less these.
+KR210_REST_DEG = (0.0, -118.69335120549698, 149.53378067020924, 0.0, -30.84042946471225, 0.0)
+
 
 @st.composite
 def rotations(draw) -> np.ndarray:

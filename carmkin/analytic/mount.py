@@ -4,7 +4,10 @@ The robots that carry a C-arm (a KUKA KR 210 class arm: the ``robotic-carm`` pre
 whose last three meet in one point, the **wrist centre** c, and whose second and third are parallel. Their
 inverse kinematics is Pieper's: the wrist centre's position gives axes 1–3, the orientation axes 4–6. With
 the twists at rest (``η_i``: unit axis ``ω_i`` through the point ``p_i``, frame 0) and the motion wanted
-``G = e^{η1 q1} ··· e^{η6 q6}`` (4, 4), each step is one of the Paden–Kahan subproblems:
+``G = e^{η1 q1} ··· e^{η6 q6}`` (4, 4), each step is one of the Paden–Kahan subproblems. Nothing refers to
+a zero of the angles but the twists at rest: a robot stated at its data sheet's zero (a KR 210's arm stretched
+out) or at a rest pose within its ranges (the ``robotic-carm`` preset: the elbow folded up, each range the data
+sheet's less the rest angle) is solved alike, its angles offset by the rest pose.
 
 1. **q1**: rotations about the parallel axes 2 and 3 keep ``ω2·x``; so ``e^{-η1 q1}`` must bring the target
    wrist centre ``w = G c`` into the plane ``ω2·x = ω2·c``: ``A cos q1 + B sin q1 = C`` — two roots
@@ -20,9 +23,10 @@ So 2 × 2 × 2 = 8 **branches** (index ``4·shoulder + 2·elbow + wrist``); a br
 real and the forward kinematics of its joints gives G back to :data:`RESIDUAL_TOLERANCE`. At a wrist
 singularity (axes 4 and 6 in line) q4 keeps the reference value and q6 takes the rest; at a shoulder
 singularity (the wrist centre on axis 1) q1 does. Near a double root (close to those singularities, or at the
-edge of the arm's reach) a square root turns round-off ε into √ε: a branch whose residual exceeds
-:data:`POLISH_ABOVE` takes two Gauss–Newton steps on the twists (quadratic: ~1e-8 becomes round-off). Every angle is then written as the representative
-``q + 2πk`` within the joint's range (:data:`~carmkin.model.params.JOINT_RANGE_TOLERANCE`) nearest the
+edge of the arm's reach, where a discriminant short of 0 by its round-off, :data:`ROOT_ROUNDOFF`, is a double
+root) a square root turns round-off ε into √ε: a branch whose residual exceeds :data:`POLISH_ABOVE` takes two
+Gauss–Newton steps on the twists (quadratic: ~1e-8 becomes round-off). Every angle is then written as the
+representative ``q + 2πk`` within the joint's range (:data:`~carmkin.model.params.JOINT_RANGE_TOLERANCE`) nearest the
 reference — a KR 210's axes 4 and 6 turn ±350° — or marked out of range.
 
 :func:`solve` is the IK of one source pose with the robot's six joints free and every other joint held;
@@ -54,6 +58,11 @@ DEGENERATE = 1e-12
 #: root turns the round-off ε into √ε — takes :data:`POLISH_STEPS` Newton steps from there (each squares the error).
 POLISH_ABOVE = 1e-14
 POLISH_STEPS = 2
+#: Relative round-off (dimensionless, 64 ulp) of the terms summed into a subproblem's ``A cos q + B sin q = C``
+#: (and of the wrist's ``γ²``): a discriminant above minus this many times the size of those terms is a double
+#: root reached within round-off (the arm stretched out or folded back at the edge of its reach, wherever the
+#: rest pose puts it), kept at its double value; the residual check then decides whether the branch exists.
+ROOT_ROUNDOFF = 64 * float(np.finfo(float).eps)
 #: Number of branches: shoulder × elbow × wrist.
 BRANCHES = 8
 
@@ -119,13 +128,17 @@ def _rotations(omega, theta):
     return np.eye(3) + s * K + v * (K @ K)
 
 
-def _cos_sin_roots(A, B, C, reference):
+def _cos_sin_roots(A, B, C, reference, size):
     """The two q of ``A cos q + B sin q = C`` (..., 2): NaN where there is none, ``reference`` (twice) where
-    (A, B) vanishes and C does too (q free)."""
+    (A, B) vanishes and C does too (q free). ``size`` (...) the size of the terms summed into A, B and C (the
+    unit of C): a discriminant ``A² + B² − C²`` short of 0 by less than their round-off
+    (:data:`ROOT_ROUNDOFF`) is a double root."""
     r2 = A * A + B * B
     disc = r2 - C * C
-    # a double root reached within round-off: keep it (the residual check decides)
-    disc = np.where((disc < 0) & (disc > -4e-15 * np.maximum(r2, 1.0)), 0.0, disc)
+    # a double root reached within round-off: keep it (the residual check decides); near it |C| ≈ |(A, B)|, so
+    # the round-off of C² is that of C (relative to size) times 2 |(A, B)|
+    tol = ROOT_ROUNDOFF * (r2 + 2.0 * np.sqrt(r2) * size)
+    disc = np.where((disc < 0) & (disc > -tol), 0.0, disc)
     with np.errstate(invalid="ignore"):
         half = np.arctan2(np.sqrt(disc), C)
     phi = np.arctan2(B, A)
@@ -163,7 +176,9 @@ def raw_branches(ik: MountIK, G, reference):
     A = v @ u_perp
     B = v @ np.cross(w[0], u_perp)
     C = u @ (c - p[0]) - (u @ w[0]) * (v @ w[0])
-    q1 = _cos_sin_roots(A, B, C, reference[:, 0])  # (N, 2)
+    # the size of the coordinates (m) the terms are computed from: the target's, the points' (frame 0)
+    coordinates = np.linalg.norm(target, axis=-1) + np.linalg.norm(c) + np.linalg.norm(p[0]) + np.linalg.norm(p[1])
+    q1 = _cos_sin_roots(A, B, C, reference[:, 0], coordinates)  # (N, 2)
     R1 = _rotations(w[0], q1)  # (N, 2, 3, 3)
     # the target wrist centre seen before joint 1: e^{-η1 q1} x
     moved = np.einsum("nkji,nj->nki", R1, v) + p[0]  # R1ᵀ (x − p1) + p1, (N, 2, 3)
@@ -175,7 +190,9 @@ def raw_branches(ik: MountIK, G, reference):
     A3 = np.full_like(delta2, a_perp @ e)
     B3 = np.full_like(delta2, np.cross(w[2], a_perp) @ e)
     C3 = 0.5 * (a @ a + e @ e - delta2) - (w[2] @ a) * (w[2] @ e)
-    q3 = _cos_sin_roots(A3, B3, C3, np.repeat(reference[:, 2:3], 2, axis=1))  # (N, 2, 2): shoulder, elbow
+    # C3's terms: |a|², |e|², δ², and δ²'s round-off: 2 δ times that of the coordinates it is measured between
+    size3 = a @ a + e @ e + delta2 + 2.0 * np.sqrt(delta2) * coordinates[:, None]
+    q3 = _cos_sin_roots(A3, B3, C3, np.repeat(reference[:, 2:3], 2, axis=1), size3)  # (N, 2, 2): shoulder, elbow
     R3 = _rotations(w[2], q3)  # (N, 2, 2, 3, 3)
     x = R3 @ a + p[2]  # e^{η3 q3} c, (N, 2, 2, 3)
     # 3. q2: about axis 2, x to moved
@@ -195,7 +212,7 @@ def raw_branches(ik: MountIK, G, reference):
         gamma2 = (np.sum(np.cross(goal, w[3]) ** 2, axis=-1) - beta ** 2) / (n @ n)
     else:
         gamma2 = (1.0 - alpha ** 2 - beta ** 2 - 2.0 * alpha * beta * k) / (n @ n)
-    gamma2 = np.where((gamma2 < 0) & (gamma2 > -4e-15), 0.0, gamma2)
+    gamma2 = np.where((gamma2 < 0) & (gamma2 > -ROOT_ROUNDOFF), 0.0, gamma2)  # of unit vectors: size 1
     with np.errstate(invalid="ignore"):
         gamma = np.sqrt(gamma2)[..., None] * np.array([1.0, -1.0])  # (N, 2, 2, 2)
     z = alpha[..., None, None] * w[3] + beta[..., None, None] * w[4] + gamma[..., None] * n  # (N, 2, 2, 2, 3)
@@ -401,5 +418,5 @@ def solve(system, T, q_current=None, *, world=None, margin: float = 0.0) -> Moun
     return MountIKResult(q, reachable, within, chosen, reason, clearance)
 
 
-__all__ = ["BRANCHES", "DEGENERATE", "RESIDUAL_TOLERANCE", "STRUCTURE_TOLERANCE", "Branches", "MountIK",
-           "MountIKResult", "branches", "in_range", "raw_branches", "solve", "solver_for"]
+__all__ = ["BRANCHES", "DEGENERATE", "RESIDUAL_TOLERANCE", "ROOT_ROUNDOFF", "STRUCTURE_TOLERANCE", "Branches",
+           "MountIK", "MountIKResult", "branches", "in_range", "raw_branches", "solve", "solver_for"]

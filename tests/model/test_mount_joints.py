@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.linalg import expm
-from strategies import PRESET, configurations, finite, motorized_systems, systems, unit_vectors
+from strategies import KR210, KR210_REST_DEG, PRESET, configurations, finite, motorized_systems, systems, unit_vectors
 
 import carmkin
 from carmkin import InvalidParameterError, JointRange
@@ -97,15 +97,6 @@ def test_at_rest_the_carm_base_sits_on_the_flange_as_the_preset_states():
     np.testing.assert_allclose(ROBOT.carm_base_pose[:3, 3], [-2.2 + 1.2, 1.2 - 1.2, 0.0], atol=1e-12)
     np.testing.assert_allclose(ROBOT.carm_base_pose[:3, 2], [0.0, -1.0, 0.0], atol=1e-12)  # vertical axis up
     np.testing.assert_allclose(ROBOT.carm_base_pose[:3, 1], [1.0, 0.0, 0.0], atol=1e-12)  # the arm along A6
-
-
-#: The KR 210 R3100-2 as ROS-Industrial publishes it (kr210_r3100-2_macro.xacro): each joint's axis and a point
-#: of it (mm) in the robot base frame with every joint at the URDF's zero, and its limits (deg).
-KR210 = [((0, 0, -1), (0, 0, 645), (-185, 185)), ((0, 1, 0), (330, 0, 645), (-140, -5)),
-         ((0, 1, 0), (1680, 0, 645), (-120, 168)), ((-1, 0, 0), (3100, 0, 760), (-350, 350)),
-         ((0, 1, 0), (3100, 0, 760), (-122.5, 122.5)), ((-1, 0, 0), (3340, 0, 760), (-350, 350))]
-#: The preset's rest pose in the URDF's angles (deg, docs/PRESETS.md): the elbow folded up, the flange level.
-KR210_REST_DEG = (0.0, -118.69335120549698, 149.53378067020924, 0.0, -30.84042946471225, 0.0)
 
 
 def _kr210(theta) -> np.ndarray:
