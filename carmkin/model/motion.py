@@ -394,9 +394,8 @@ def follow(motion: Motion | None, q, acquisition_time=None, prismatic=None) -> F
 
 def system_move(system, q_from, q_to, timing: Timing = Timing.SYNCHRONIZED) -> Duration:
     """:func:`move_duration` on ``system.motion``, or an unknown duration (:data:`NO_SPEEDS`) without it."""
-    from carmkin.model.system import require_system
-
-    require_system(system, MotionError)
+    if not (hasattr(system, "motion") and hasattr(system, "joint_names")):  # a CArmSystem (no import: system imports us)
+        raise MotionError(f"system must be a carmkin.CArmSystem (carmkin.load_preset(...)), got {type(system).__name__}")
     if system.motion is None:
         return unknown(_timing(timing, (Timing.SYNCHRONIZED, Timing.JOINT_BY_JOINT)))
     return move_duration(system.motion, q_from, q_to, timing)

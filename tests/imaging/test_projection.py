@@ -67,8 +67,10 @@ def test_projection_to_pose_to_joints_round_trip(data):
     assert np.abs(P_again - P).max() <= ROUND_TRIP * np.abs(P).max()
     # ... and to joints through the closed-form IK: a branch lands on the pose.
     result = analytic_ik.solve(system, T)
-    errors = [max(np.linalg.norm(system.fk(s)[:3, 3] - T_true[:3, 3]), rotation_angle(system.fk(s)[:3, :3],
-                  T_true[:3, :3])) for s, b in zip(result.solutions, result.branches) if b.reached]
+    # (a far branch may put the table tens of metres out: fk's unit-slip guard is not this test's subject)
+    poses = [system.fk(s, check_units=False) for s, b in zip(result.solutions, result.branches) if b.reached]
+    errors = [max(np.linalg.norm(T_s[:3, 3] - T_true[:3, 3]), rotation_angle(T_s[:3, :3], T_true[:3, :3]))
+              for T_s in poses]
     assert errors and min(errors) <= ROUND_TRIP
 
 

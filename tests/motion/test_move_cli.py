@@ -9,13 +9,14 @@ import sys
 
 import numpy as np
 import pytest
+from hang import HANG_GUARD_S
 
 from carmkin.cli import main
 
 
 def run(*args):
     return subprocess.run([sys.executable, "-m", "carmkin.cli", "move", *args], capture_output=True, text=True,
-                          timeout=600)
+                          timeout=HANG_GUARD_S)
 
 
 def test_plan_to_a_view_prints_and_writes_the_motion(capsys, tmp_path):

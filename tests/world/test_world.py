@@ -103,10 +103,15 @@ def test_distance_jacobian_matches_finite_differences(u, seed):
     near = scene.proximity(distances, 0.3)
     rows = scene.distance_jacobian(near, data.J)
     dq = np.random.default_rng(seed).normal(size=model.nv) * 1e-4
-    fd = (scene.distances(q=q + dq)[near.index] - scene.distances(q=q - dq)[near.index]) / 2
+    here = distances[near.index]
+    forward = scene.distances(q=q + dq)[near.index] - here
+    backward = here - scene.distances(q=q - dq)[near.index]
     pred = rows @ dq
     scale = np.linalg.norm(rows, axis=1) * np.linalg.norm(dq)
-    assert np.all(np.abs(fd - pred) <= 0.15 * scale + 2e-6)
+    # at a kink of a box pair's distance (the witness features switch) the Jacobian is one side's derivative
+    # and the central difference averages the two: each row must match the central or a one-sided difference
+    ok = [np.abs(d - pred) <= 0.15 * scale + 2e-6 for d in ((forward + backward) / 2, forward, backward)]
+    assert np.all(ok[0] | ok[1] | ok[2])
 
 
 def test_one_policy_for_every_preset():
