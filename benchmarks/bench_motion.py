@@ -3,7 +3,7 @@ patient, python benchmarks/bench_motion.py [--quick] [--queries N] [--offline-s 
 
 Per preset: the 16 standard views planned with ``plan_view`` (patient on the table), then queries between them
 (every ordered pair) and random reachable pairs (random views ±60° / ±40°, planned) up to N queries (500 by
-default, 24 with --quick). Each query is planned by
+default, 12 with --quick). Each query is planned by
 
 * **carmkin** (``MotionPlanner.plan``: the certified straight line, else OMPL RRT-Connect over the certified
   checks, default time budget);
@@ -184,12 +184,12 @@ def bench_biplane() -> None:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="24 queries a preset, 5 s offline runs")
+    parser.add_argument("--quick", action="store_true", help="12 queries a preset, 5 s offline runs")
     parser.add_argument("--queries", type=int, default=None, help="queries a preset (default 500, 24 quick)")
     parser.add_argument("--offline-s", type=float, default=None, help="offline AORRTC time a query (s)")
     parser.add_argument("--presets", default=None, help="comma-separated presets (default: every single-plane one)")
     args = parser.parse_args()
-    n = args.queries or (24 if args.quick else 500)
+    n = args.queries or (12 if args.quick else 500)
     offline = args.offline_s or (5.0 if args.quick else 60.0)
     names = [p for p in (args.presets.split(",") if args.presets else carmkin.list_presets()) if p != "angio-biplane"]
     print(f"bench_motion: {n} queries a preset, offline runs {offline:g} s; the biplane's standard pairs last")
