@@ -5,7 +5,7 @@ one per CPU), in a scratch folder so that files it writes do not land in the rep
 the build (``mkdocs build --strict`` then exits non-zero). The executed copy is written to
 ``docs/notebooks/`` (git-ignored), which mkdocs-jupyter renders as it is (``execute: false`` in mkdocs.yml:
 the execution happened here). Executed copies are cached in ``build/notebooks/`` under a hash of the
-notebook and of carmkin's sources (the CLI's modules aside), so an unchanged notebook is not run twice
+notebook, of carmkin's sources (the CLI's modules aside) and of the installed distributions, so an unchanged notebook is not run twice
 (``tests/test_notebooks.py`` reads the same cache). A notebook that needs an extra the build's environment
 lacks (its metadata ``carmkin.needs``: ``[module, extra]`` pairs, see :func:`missing_extra`) is not executed:
 the site shows its code under a note naming the extra, and the build says so (``python -m pip install -e
@@ -73,7 +73,14 @@ def unexecuted_copy(path: Path, reason: str) -> str:
 
 
 def _sources_digest() -> str:
+    """A hash of carmkin's sources and of the environment's installed distributions (name and version): a
+    notebook that prints "rendering skipped" without an extra must not be served from the cache to an environment
+    that has the extra (CI builds the site first with the docs extra alone, then with every extra)."""
+    from importlib.metadata import distributions
+
     digest = hashlib.sha256()
+    installed = sorted(f"{d.metadata['Name']}=={d.version}" for d in distributions() if d.metadata["Name"])
+    digest.update("\n".join(installed).encode())
     for folder in ("carmkin", "viz", "urdf"):
         for path in sorted((ROOT / folder).rglob("*")):
             if path.is_file() and path.suffix in (".py", ".toml", ".xacro") and "commands" not in path.parts:
