@@ -1,4 +1,4 @@
-"""Test configuration: hypothesis profiles and the ``slow`` marker.
+"""Test configuration: hypothesis profiles, the ``slow`` marker and CI's rerun of what skipped.
 
 "ci" (default) draws 200 examples per property from a fixed seed, so a CI run is reproducible; "explore"
 draws 1000 fresh random examples (HYPOTHESIS_PROFILE=explore) and "dev" 30 (quick runs).
@@ -6,6 +6,11 @@ draws 1000 fresh random examples (HYPOTHESIS_PROFILE=explore) and "dev" 30 (quic
 ``slow``: the executed notebooks (``--nbmake``), the tests of :data:`SLOW` and every test marked
 ``@pytest.mark.slow``; a contributor's quick run leaves them out: ``python -m pytest -m "not slow"``
 (README, "Run the tests"). CI runs everything.
+
+CI runs the README's command with the test extra alone first, then installs every extra and runs again only what
+skipped the first time (``.ci/run``): ``CARMKIN_RECORD_SKIPPED=FILE`` writes the node ids of the tests and
+modules that skip to FILE; ``CARMKIN_RUN_ONLY=FILE`` keeps only the tests FILE names (a module's id keeps all
+its tests) and deselects the rest.
 """
 
 import os
@@ -55,6 +60,9 @@ def _notebook_hooks():
 def pytest_collection_modifyitems(config, items):
     import pytest
 
+    if os.environ.get("CARMKIN_RUN_ONLY"):
+        _keep_only_listed(config, items)
+
     tests = Path(__file__).parent
     hooks = None
     for item in items:
@@ -72,3 +80,34 @@ def pytest_collection_modifyitems(config, items):
             continue
         if node.startswith(SLOW):
             item.add_marker(pytest.mark.slow)
+
+
+# --- CI's second run: only what skipped in the first ---------------------------------------------------------
+_skipped: list[str] = []
+
+
+def _record_skip(report) -> None:
+    if os.environ.get("CARMKIN_RECORD_SKIPPED") and report.skipped and not hasattr(report, "wasxfail"):
+        _skipped.append(report.nodeid)
+
+
+def pytest_collectreport(report):
+    _record_skip(report)  # a module that skips as a whole (a module-level importorskip)
+
+
+def pytest_runtest_logreport(report):
+    _record_skip(report)
+
+
+def pytest_sessionfinish(session):
+    target = os.environ.get("CARMKIN_RECORD_SKIPPED")
+    if target:
+        Path(target).write_text("".join(f"{node}\n" for node in dict.fromkeys(_skipped)))
+
+
+def _keep_only_listed(config, items) -> None:
+    listed = Path(os.environ["CARMKIN_RUN_ONLY"]).read_text().split("\n")
+    listed = tuple(node for node in listed if node)
+    keep = [item for item in items if item.nodeid in listed or item.nodeid.startswith(tuple(n + "::" for n in listed))]
+    config.hook.pytest_deselected(items=[item for item in items if item not in keep])
+    items[:] = keep
