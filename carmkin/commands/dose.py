@@ -4,8 +4,9 @@
 extra), places each through the preset's joints (docs/dose.md: the vendor's table-position convention, the
 XA primary and secondary angles), and prints the peak skin dose (PSD, mGy), where it is (table frame, mm),
 the largest overlap of entrance fields and the cells hit, on --phantom plane (PySkinDose's 40 x 120 cm sheet on
-a 4 cm pad, the default), cylinder (its 20 x 10 cm elliptic cylinder) or patient (the parametric body,
---height-m, --mass-kg, --chest-z-mm) at --spacing-mm. An event the report does not give the geometry or
+a 4 cm pad, the default), cylinder (its 20 x 10 cm elliptic cylinder) or patient (the parametric body of
+--patient-height-mm, --patient-mass-kg, --patient-chest-z-mm, head first supine as the report's angles are read)
+at --spacing-mm. An event the report does not give the geometry or
 technique of is refused by name (exit 2); --skip-incomplete maps the others and lists the refused.
 --secondary pyskindose reads the secondary angle as PySkinDose does per vendor (its Siemens reading is the
 opposite of the standard's text). --json writes the numbers, --png the map.
@@ -16,6 +17,7 @@ from __future__ import annotations
 import argparse
 
 from . import _common as common
+from . import _scene
 
 HELP = "skin dose of a procedure: the dose map of a dose report (RDSR) on a phantom or the parametric patient"
 MM = 1000.0
@@ -34,12 +36,7 @@ def register(parser: argparse.ArgumentParser) -> None:
                       help="the skin: PySkinDose's plane (default) or cylinder, or the parametric patient")
     dmap.add_argument("--spacing-mm", type=common.number(1.0, 100.0, unit="mm"), default=10.0,
                       help="skin cell spacing (mm, default 10)")
-    dmap.add_argument("--height-m", type=common.number(0.4, 2.8, unit="m"), default=1.75,
-                      help="--phantom patient: body height (m, default 1.75)")
-    dmap.add_argument("--mass-kg", type=common.number(1.0, 650.0, unit="kg"), default=75.0,
-                      help="--phantom patient: body mass (kg, default 75)")
-    dmap.add_argument("--chest-z-mm", type=common.number(-3000.0, 3000.0, unit="mm"), default=0.0,
-                      help="--phantom patient: the chest (nipple level) along the table, Z0 (mm, default 0)")
+    _scene.add_patient_arguments(dmap, default="parametric")  # used with --phantom patient
     dmap.add_argument("--secondary", choices=("dicom", "pyskindose"), default="dicom",
                       help="reading of the secondary angle: the standard's (default) or PySkinDose's per vendor")
     dmap.add_argument("--skip-incomplete", action="store_true",
@@ -55,15 +52,18 @@ def run(args: argparse.Namespace) -> int:
 
 def _skin(system, args):
     from carmkin import dose
-    from carmkin.patient import ParametricPatient
 
     spacing = args.spacing_mm / MM
     if args.phantom == "plane":
         return dose.plane(system, spacing=spacing)
     if args.phantom == "cylinder":
         return dose.cylinder(system, spacing=spacing)
-    patient = ParametricPatient.on_table(system, height=args.height_m, mass=args.mass_kg, chest_z=args.chest_z_mm / MM)
-    return dose.from_patient(patient, spacing)
+    if args.patient == "none":
+        raise common.UsageError("--phantom patient needs --patient parametric (the body the skin is sampled on)")
+    if args.patient_position != "HFS":
+        raise common.UsageError(f"--patient-position {args.patient_position}: a report's angles are read for a head "
+                                "first supine patient (HFS); its body must lie so")
+    return dose.from_patient(_scene.patient_from_args(system, args), spacing)
 
 
 def _map(args: argparse.Namespace) -> int:
