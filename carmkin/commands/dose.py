@@ -10,6 +10,14 @@ at --spacing-mm. An event the report does not give the geometry or
 technique of is refused by name (exit 2); --skip-incomplete maps the others and lists the refused.
 --secondary pyskindose reads the secondary angle as PySkinDose does per vendor (its Siemens reading is the
 opposite of the standard's text). --json writes the numbers, --png the map.
+
+`carmkin dose plan --view-deg 30,20 --runs 30` predicts the map of a plan: each --view-deg PRIMARY,SECONDARY (XA angles,
+LAO +, CRA +, deg) of --target-mm planned on the preset around the parametric patient, --runs runs of it, each of
+--frames frames at --kvp, --cu-mm / --al-mm added filter and --field-mm W,H at the detector; the air kerma at the
+IRP per frame from the model of docs/dose.md ("From a plan": the automatic exposure control against the
+water-equivalent thickness of the central ray through the body). --dose-aware-deg DEG takes each run at the
+reachable view within DEG of its request that minimizes the predicted PSD given the runs before it, moving there by
+a certified motion, and prints the PSD with and without. Exit 1 when a view is unreachable.
 """
 
 from __future__ import annotations
@@ -19,7 +27,7 @@ import argparse
 from . import _common as common
 from . import _scene
 
-HELP = "skin dose of a procedure: the dose map of a dose report (RDSR) on a phantom or the parametric patient"
+HELP = "skin dose of a procedure: the dose map of a dose report (RDSR) or of a plan of views on the patient"
 MM = 1000.0
 #: The preset a report is read with by default (a report's geometry needs an angiography stand's joints).
 DEFAULT_PRESET = "angio-floor"
@@ -44,6 +52,34 @@ def register(parser: argparse.ArgumentParser) -> None:
     common.add_json_argument(dmap, "the PSD, its place, the overlap and each event's part")
     common.add_png_argument(dmap, "the dose map")
     dmap.set_defaults(action_run=_map)
+
+    dplan = sub.add_parser("plan", help="the predicted dose map of planned views", description=__doc__,
+                           formatter_class=argparse.RawDescriptionHelpFormatter)
+    dplan.add_argument("--preset", default=DEFAULT_PRESET,
+                       help=f"built-in preset name or .toml file (default {DEFAULT_PRESET})")
+    dplan.add_argument("--view-deg", metavar="PRIMARY,SECONDARY", action="append", required=True,
+                       help="a view's XA angles (deg, LAO +, CRA +; repeat for more views, in order)")
+    dplan.add_argument("--target-mm", metavar="X,Y,Z", default="0,0,0",
+                       help="the point the beams pass through, table frame (mm, default 0,0,0)")
+    dplan.add_argument("--runs", type=common.integer(1, 1000), default=1, help="runs of each view (default 1)")
+    dplan.add_argument("--frames", type=common.integer(1, 10000), default=10, help="frames per run (default 10)")
+    dplan.add_argument("--kvp", type=common.number(50.0, 150.0, unit="kV"), default=80.0,
+                       help="tube voltage (kV, default 80)")
+    dplan.add_argument("--cu-mm", type=common.number(0.0, 10.0, unit="mm"), default=0.3,
+                       help="added copper filter (mm, default 0.3)")
+    dplan.add_argument("--al-mm", type=common.number(0.0, 10.0, unit="mm"), default=0.0,
+                       help="added aluminium filter (mm, default 0)")
+    dplan.add_argument("--field-mm", metavar="W,H", default="200,200",
+                       help="collimated field at the detector (mm, default 200,200)")
+    dplan.add_argument("--dose-aware-deg", type=common.number(0.0, 45.0, unit="deg"), default=None,
+                       help="take each run at the reachable view within this angle of its request that minimizes "
+                            "the predicted PSD (deg; default: the views as requested)")
+    _scene.add_patient_arguments(dplan, default="parametric")
+    dplan.add_argument("--spacing-mm", type=common.number(1.0, 100.0, unit="mm"), default=10.0,
+                       help="skin cell spacing (mm, default 10)")
+    common.add_json_argument(dplan, "the PSD, its place, each run's view, thickness and kerma")
+    common.add_png_argument(dplan, "the dose map")
+    dplan.set_defaults(action_run=_plan)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -101,5 +137,90 @@ def _map(args: argparse.Namespace) -> int:
 
         path = common.plot_path(args.png, "--png")
         dose_figure(m, path, title=f"{Path(args.rdsr).name} on {system.name}: PSD {m.psd_gy * MM:.3g} mGy")
+        print(f"wrote {path}")
+    return 0
+
+
+def _plan(args: argparse.Namespace) -> int:
+    from carmkin import dose
+    from carmkin.views import View, plan_view
+
+    system = common.system_from_args(args)
+    if args.patient == "none":
+        raise common.UsageError("--patient none: a plan's kerma and skin need the parametric patient")
+    target = common.parse_numbers(args.target_mm, 3, "--target-mm", unit="mm") / MM
+    field = common.parse_numbers(args.field_mm, 2, "--field-mm", unit="mm")
+    patient = _scene.patient_from_args(system, args)
+    technique = dose.Technique(kvp=args.kvp, frames=args.frames, filter={"Cu": args.cu_mm, "Al": args.al_mm},
+                               field_mm=tuple(field))
+    views = []
+    for text in args.view_deg:
+        p, s = common.parse_numbers(text, 2, "--view-deg")
+        views.append(View.from_angles(p, s, target, position=patient, name=f"({p:g}, {s:g})"))
+    requests = [v for v in views for _ in range(args.runs)]
+    plans = {}
+    for v in views:
+        plans[v.name] = plan_view(system, v, patient)
+        if not plans[v.name].success:
+            print(f"view {v.name} deg is not reachable: {plans[v.name].reason}")
+            return 1
+    spacing = args.spacing_mm / MM
+    print(f"preset {system.name}; patient: {_scene.describe_patient(patient, args.patient_position)}; "
+          f"{len(views)} view(s) x {args.runs} run(s) x {args.frames} frames at {args.kvp:g} kV, Cu {args.cu_mm:g} mm, "
+          f"Al {args.al_mm:g} mm, field {field[0]:g} x {field[1]:g} mm")
+    data = {"preset": system.name, "patient": _scene.patient_json(patient, args.patient_position),
+            "technique": {"kvp": args.kvp, "frames": args.frames, "cu_mm": args.cu_mm, "al_mm": args.al_mm,
+                          "field_mm": field.tolist(), "hvl_mm_al": technique.hvl(),
+                          "reference_kerma_mgy": technique.reference_kerma_gy * MM,
+                          "reference_thickness_mm": technique.reference_thickness_m * MM}}
+    predicted = dose.plan_dose(system, [plans[v.name] for v in requests], patient, technique, spacing=spacing)
+    m = predicted.map
+    summary = m.summary()
+    for v in views:
+        i = next(k for k, r in enumerate(requests) if r is v)
+        print(f"view {v.name} deg: water-equivalent thickness {predicted.water_m[i] * MM:.1f} mm, air kerma at the IRP "
+              f"{predicted.kerma_per_frame_gy[i] * MM:.4g} mGy/frame")
+    print(f"PSD {m.psd_gy * MM:.4g} mGy at ({', '.join(f'{v:.1f}' for v in summary['psd_point_mm'])}) mm (table frame); "
+          f"at most {summary['max_overlap']} entrance fields overlap, {summary['cells_hit']} cells hit")
+    data.update({"psd_mgy": m.psd_gy * MM, "psd_point_mm": summary["psd_point_mm"],
+                 "max_overlap": summary["max_overlap"], "cells": summary["cells"], "cells_hit": summary["cells_hit"],
+                 "runs": [{"view_deg": [float(a) for a in r.angles(patient)], "water_mm": float(w) * MM,
+                           "kerma_irp_mgy": e.k_irp_gy * MM}
+                          for r, w, e in zip(requests, predicted.water_m, predicted.events)]})
+    chosen_map = None
+    if args.dose_aware_deg is not None:
+        proc = dose.dose_aware_procedure(system, requests, patient, technique, tolerance_deg=args.dose_aware_deg,
+                                         q_start=plans[requests[0].name].q, spacing=spacing)
+        chosen_map = proc.chosen_map
+        moved = [c for c in proc.choices if c.motion is not None]
+        certified = all(c.motion.success for c in moved)
+        print(f"dose-aware within {args.dose_aware_deg:g} deg: PSD {proc.psd_chosen_gy * MM:.4g} mGy instead of "
+              f"{proc.psd_requested_gy * MM:.4g} mGy ({proc.reduction * 100:.1f} % lower); motions certified: "
+              f"{certified}, smallest certified clearance "
+              f"{min(c.motion.min_clearance for c in moved) * MM:.1f} mm")
+        taken: dict = {}
+        for c in proc.choices:
+            taken.setdefault((round(c.primary_deg, 3), round(c.secondary_deg, 3), round(c.angle_deg, 1)), []).append(c)
+        for (p, s, angle), cs in taken.items():
+            print(f"  ({p:g}, {s:g}) deg, {angle:g} deg from its request: {len(cs)} run(s)")
+        data["dose_aware"] = {
+            "tolerance_deg": args.dose_aware_deg, "psd_mgy": proc.psd_chosen_gy * MM,
+            "psd_requested_mgy": proc.psd_requested_gy * MM, "reduction": proc.reduction,
+            "runs": [{"view_deg": [c.primary_deg, c.secondary_deg], "angle_deg": c.angle_deg,
+                      "q": common.joints_json(system, c.q), "motion_success": c.motion.success,
+                      "motion_duration_s": c.motion.duration if c.motion.success else None,
+                      "motion_min_clearance_mm": c.motion.min_clearance * MM if c.motion.success else None}
+                     for c in proc.choices]}
+        if not certified:
+            common.write_json(args, data)
+            return 1
+    common.write_json(args, data)
+    if args.png:
+        from carmkin.dose.figure import dose_figure
+
+        path = common.plot_path(args.png, "--png")
+        shown = m if chosen_map is None else chosen_map
+        dose_figure(shown, path, title=f"plan on {system.name}: PSD {shown.psd_gy * MM:.3g} mGy"
+                    + ("" if chosen_map is None else " (dose-aware)"))
         print(f"wrote {path}")
     return 0
