@@ -265,8 +265,20 @@ def dose_event(rng):
     return maybe_junk(rng, Case(Event, (q, kvp, kerma, field_mm), check=check), ("q", "kvp", "k_irp_gy", "field_mm"))
 
 
+def dose_water_thickness(rng):
+    from carmkin.dose import water_thickness
+    from carmkin.patient import ParametricPatient
+
+    patient = ParametricPatient.on_table(PRESET)
+    start, end = rng.normal(scale=0.5, size=3), rng.normal(scale=0.5, size=3)
+
+    def check(t):  # a chord of the segment, at most the densest segment's density (the head's 1110) over water's
+        return math.isfinite(t) and 0.0 <= t <= 1.11 * float(np.linalg.norm(end - start)) + 1e-12
+    return maybe_junk(rng, Case(water_thickness, (patient, start, end), check=check), ("patient", "start", "end"))
+
+
 ENTRIES = {
-    "dose.Event": (dose_event, 1),
+    "dose.Event": (dose_event, 1), "dose.water_thickness": (dose_water_thickness, 0.5),
     "views.View.from_angles": (view_from_angles, 1), "views.View.from_pose": (view_from_pose, 1),
     "views.plan_view": (plan_a_view, 0.2), "datasets.sample_poses": (sample_some_poses, 0.2),
     "imaging.homography_between": (homography_between, 2), "imaging.dehomogenize": (dehomogenize, 1),

@@ -18,10 +18,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from carmkin.dose.compute import event_dose
+from carmkin.dose.event import Event
 from carmkin.dose.plan import Technique, central_ray, water_thickness
 from carmkin.dose.skin import DEFAULT_SPACING, skin_of
 from carmkin.errors import DoseError
-from carmkin.validation import real_scalar
+from carmkin.validation import real_array, real_scalar
 
 #: Default angular tolerance (deg) between a request and its dose-aware alternatives (the issue's 10°).
 DEFAULT_TOLERANCE_DEG = 10.0
@@ -103,7 +104,9 @@ class _Running:
         self.system, self.skin = system, skin
         self.columns = np.ascontiguousarray(skin.points.T)
         self.dose = np.zeros(len(skin.points))
-        for e in events:
+        for i, e in enumerate(events):
+            if not isinstance(e, Event):
+                raise DoseError(f"events[{i}] must be a carmkin.dose.Event, got {type(e).__name__}")
             self.add(e)
 
     def part(self, event):
@@ -140,6 +143,10 @@ def _check(system, patient, technique) -> Technique:
     return technique
 
 
+def _joints(system, q, name: str) -> np.ndarray | None:
+    return None if q is None else real_array(q, name, (system.nq,), error=DoseError, unit="m, rad")
+
+
 def _choose(system, patient, technique, running: _Running, cands: Candidates, q_current, name: str) -> Choice:
     if not len(cands.q):
         raise DoseError(f"no reachable view within the tolerance of the request {name!r} "
@@ -152,8 +159,13 @@ def _choose(system, patient, technique, running: _Running, cands: Candidates, q_
         from carmkin.motion import MotionPlanner
         from carmkin.views.plan import PATH_CLEARANCE, world_for
 
+        from carmkin.errors import MotionPlanError
+
         planner = MotionPlanner(system, margin=PATH_CLEARANCE, world=world_for(system, patient))
-        motion = planner.plan(np.asarray(q_current, dtype=float), cands.q[best])
+        try:
+            motion = planner.plan(q_current, cands.q[best])
+        except MotionPlanError as exc:  # a start closer than the path clearance to something: no motion, and why
+            motion = planner.failed(q_current, str(exc))
     return Choice(float(cands.primary_deg[best]), float(cands.secondary_deg[best]), float(cands.angle_deg[best]),
                   cands.q[best].copy(), events[best], float(scores[best]),
                   None if cands.requested is None else float(scores[cands.requested]),
@@ -167,6 +179,9 @@ def choose_view(system, view, patient, events=(), technique: Technique | None = 
     ``patient`` (a parametric patient on the table top), given ``events`` so far (:class:`carmkin.dose.Event`),
     among the reachable views within ``tolerance_deg``; with ``q_current`` (nq,), the certified motion there."""
     technique = _check(system, patient, technique)
+    q_current = _joints(system, q_current, "q_current")
+    if isinstance(events, (str, bytes)) or not hasattr(events, "__iter__"):
+        raise DoseError(f"events must be a sequence of carmkin.dose.Event, got {type(events).__name__}")
     running = _Running(system, patient, skin_of(patient, spacing), list(events))
     return _choose(system, patient, technique, running, candidates(system, view, patient, tolerance_deg, step_deg),
                    q_current, view.name)
@@ -202,7 +217,7 @@ def dose_aware_procedure(system, requests, patient, technique: Technique | None 
     skin = skin_of(patient, spacing)
     running = _Running(system, patient, skin, [])
     cache, choices, requested_events = {}, [], []
-    q = None if q_start is None else np.asarray(q_start, dtype=float)
+    q = _joints(system, q_start, "q_start")
     for i, view in enumerate(requests):
         key = (view.target, view.direction)
         if key not in cache:

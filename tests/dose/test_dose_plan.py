@@ -196,3 +196,11 @@ def test_choose_view_reports_the_psd_with_and_without():
         dose.choose_view(SYSTEM, view, patient, [], tech, tolerance_deg=-1.0)
     with pytest.raises(DoseError, match="view must be a carmkin.views.View"):
         dose.choose_view(SYSTEM, "LAO", patient, [], tech)
+    with pytest.raises(DoseError, match=r"events\[0\] must be a carmkin.dose.Event"):
+        dose.choose_view(SYSTEM, view, patient, ["AP"], tech)
+    with pytest.raises(DoseError, match="q_current"):
+        dose.choose_view(SYSTEM, view, patient, [], tech, q_current="home")
+    with pytest.raises(DoseError, match="q_start"):
+        dose.dose_aware_procedure(SYSTEM, [view], patient, tech, q_start=[0.0, 1.0])
+    with pytest.raises(DoseError, match="at least one view"):
+        dose.dose_aware_procedure(SYSTEM, [], patient, tech)
