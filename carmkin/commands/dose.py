@@ -9,7 +9,8 @@ a 4 cm pad, the default), cylinder (its 20 x 10 cm elliptic cylinder) or patient
 at --spacing-mm. An event the report does not give the geometry or
 technique of is refused by name (exit 2); --skip-incomplete maps the others and lists the refused.
 --secondary pyskindose reads the secondary angle as PySkinDose does per vendor (its Siemens reading is the
-opposite of the standard's text). --json writes the numbers, --png the map.
+opposite of the standard's text). --json writes the numbers, --png the map, --html the map on the skin in the viewer
+(a static page: the skin cells coloured on the "hot" scale from 0 to the PSD, the C-arm at the last event).
 
 `carmkin dose plan --view-deg 30,20 --runs 30` predicts the map of a plan: each --view-deg PRIMARY,SECONDARY (XA angles,
 LAO +, CRA +, deg) of --target-mm planned on the preset around the parametric patient, --runs runs of it, each of
@@ -17,7 +18,8 @@ LAO +, CRA +, deg) of --target-mm planned on the preset around the parametric pa
 IRP per frame from the model of docs/dose.md ("From a plan": the automatic exposure control against the
 water-equivalent thickness of the central ray through the body). --dose-aware-deg DEG takes each run at the
 reachable view within DEG of its request that minimizes the predicted PSD given the runs before it, moving there by
-a certified motion, and prints the PSD with and without. Exit 1 when a view is unreachable.
+a certified motion, and prints the PSD with and without. --json, --png and --html as for `dose map` (the page: the
+C-arm at the last run). Exit 1 when a view is unreachable.
 """
 
 from __future__ import annotations
@@ -51,6 +53,7 @@ def register(parser: argparse.ArgumentParser) -> None:
                       help="map the events that have their geometry and list the refused ones (else exit 2)")
     common.add_json_argument(dmap, "the PSD, its place, the overlap and each event's part")
     common.add_png_argument(dmap, "the dose map")
+    dmap.add_argument("--html", metavar="FILE", help="write the dose map on the skin in the viewer as a static page")
     dmap.set_defaults(action_run=_map)
 
     dplan = sub.add_parser("plan", help="the predicted dose map of planned views", description=__doc__,
@@ -79,6 +82,7 @@ def register(parser: argparse.ArgumentParser) -> None:
                        help="skin cell spacing (mm, default 10)")
     common.add_json_argument(dplan, "the PSD, its place, each run's view, thickness and kerma")
     common.add_png_argument(dplan, "the dose map")
+    dplan.add_argument("--html", metavar="FILE", help="write the dose map on the skin in the viewer as a static page")
     dplan.set_defaults(action_run=_plan)
 
 
@@ -138,6 +142,7 @@ def _map(args: argparse.Namespace) -> int:
         path = common.plot_path(args.png, "--png")
         dose_figure(m, path, title=f"{Path(args.rdsr).name} on {system.name}: PSD {m.psd_gy * MM:.3g} mGy")
         print(f"wrote {path}")
+    _write_page(args, system, m, report.events[-1].q, f"{Path(args.rdsr).name} on {system.name}")
     return 0
 
 
@@ -223,4 +228,26 @@ def _plan(args: argparse.Namespace) -> int:
         dose_figure(shown, path, title=f"plan on {system.name}: PSD {shown.psd_gy * MM:.3g} mGy"
                     + ("" if chosen_map is None else " (dose-aware)"))
         print(f"wrote {path}")
+    if args.html:
+        shown, q_last = (m, predicted.events[-1].q) if chosen_map is None else (chosen_map, proc.choices[-1].q)
+        _write_page(args, system, shown, q_last, f"plan on {system.name}"
+                    + ("" if chosen_map is None else " (dose-aware)"))
     return 0
+
+
+def _write_page(args, system, m, q, what: str) -> None:
+    """``--html``: the map on the skin in the viewer, the C-arm at ``q`` (m, rad; the middle of its ranges when
+    ``q`` is outside them, as a report's last event may be)."""
+    if not args.html:
+        return
+    from carmkin.errors import InvalidConfigurationError
+    from carmkin.viz.dose import dose_page
+    from carmkin.viz.viewer import check_configuration
+
+    try:
+        check_configuration(system, q)
+    except InvalidConfigurationError:
+        q = None
+    path = common.output_path(args.html, "--html", ("html", "htm"))
+    path.write_text(dose_page(system, m, q, title=f"{what}: PSD {m.psd_gy * MM:.4g} mGy"), encoding="utf-8")
+    print(f"wrote {path}")
