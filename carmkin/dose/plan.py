@@ -225,13 +225,15 @@ def central_ray(system, q) -> tuple[np.ndarray, np.ndarray]:
 class PlanDose:
     """The predicted dose of a plan: ``events`` (one :class:`Event` per run, the predicted ``k_irp_gy``),
     ``water_m`` (per event, the water-equivalent thickness of its central ray, m), ``kerma_per_frame_gy``
-    (per event), ``map`` (the :class:`carmkin.dose.DoseMap`) and the ``technique``."""
+    (per event), ``map`` (the :class:`carmkin.dose.DoseMap`) and the ``technique``; for a biplane, ``planes``
+    names each event's plane (``"frontal"`` or ``"lateral"``), else it is ``None``."""
 
     events: tuple
     water_m: np.ndarray
     kerma_per_frame_gy: np.ndarray
     map: object
     technique: Technique
+    planes: tuple | None = None
 
 
 def _runs(system, plan) -> list[tuple[np.ndarray, int | None, str]]:
@@ -268,24 +270,73 @@ def _runs(system, plan) -> list[tuple[np.ndarray, int | None, str]]:
     return runs
 
 
-def predict_events(system, plan, patient, technique: Technique | None = None) -> tuple[list, np.ndarray, np.ndarray]:
-    """The predicted events of ``plan`` (see :func:`plan_dose`): (events, water-equivalent thickness (m) and air
-    kerma per frame (Gy) of each)."""
+def _biplane_runs(biplane, plan) -> list[tuple[str, np.ndarray, str]]:
+    """``plan`` on a biplane as (plane, q of that plane, name) per run: a successful biplane plan (``.q``, both
+    planes' views: :func:`carmkin.biplane.plan_biplane`) or a biplane joint vector (nq,) / (n, nq) — each a run of
+    both planes."""
+    if isinstance(plan, (str, bytes)) or not hasattr(plan, "__iter__"):
+        raise DoseError(f"plan must be a sequence of biplane plans (carmkin.biplane.plan_biplane results) or biplane "
+                        f"joint vectors, got {type(plan).__name__}")
+    runs = []
+    for i, item in enumerate(plan):
+        label = f"plan[{i}]"
+        if hasattr(item, "frontal") and hasattr(item, "lateral") and hasattr(item, "success"):  # a BiplanePlan
+            if not item.success:
+                raise DoseError(f"{label}: the biplane plan failed ({getattr(item, 'reason', '')}); plan a feasible "
+                                "pair")
+            Q = real_array(item.q, f"{label}.q", (biplane.nq,), error=DoseError, unit="m, rad")[None]
+        elif hasattr(item, "success") or hasattr(item, "q"):
+            raise DoseError(f"{label}: a plan of one plane ({type(item).__name__}) on the biplane {biplane.name!r}: "
+                            "give biplane plans (carmkin.biplane.plan_biplane) or biplane joint vectors")
+        else:
+            Q = real_array(item, label, None, error=DoseError, unit="m, rad")
+            if Q.ndim == 1:
+                Q = Q[None]
+            if Q.ndim != 2 or Q.shape[1] != biplane.nq:
+                raise DoseError(f"{label} must be a biplane joint vector ({biplane.nq},) or ({biplane.nq},) rows, or "
+                                f"a biplane plan, got shape {Q.shape}")
+        for k, q in enumerate(Q):
+            q_f, q_l = biplane.planes_q(q)
+            name = label if len(Q) == 1 else f"{label}[{k}]"
+            runs += [("frontal", q_f, f"{name} frontal"), ("lateral", q_l, f"{name} lateral")]
+    if not runs:
+        raise DoseError("plan must hold at least one view, got none")
+    return runs
+
+
+def _predict(system, plan, patient, technique: Technique | None):
+    """(systems, events, water-equivalent thickness (m), air kerma per frame (Gy), planes or None) of ``plan`` on
+    ``system`` (a CArmSystem or a Biplane)."""
+    from carmkin.model.biplane import Biplane
     from carmkin.model.system import require_system
 
-    require_system(system, DoseError)
     technique = Technique() if technique is None else technique
     if not isinstance(technique, Technique):
         raise DoseError(f"technique must be a carmkin.dose.Technique, got {type(technique).__name__}")
-    events, water, per_frame = [], [], []
-    for q, frames, name in _runs(system, plan):
-        t = water_thickness(patient, *central_ray(system, q))
+    if isinstance(system, Biplane):
+        planes = {"frontal": system.frontal, "lateral": system.lateral}
+        runs = [(plane, planes[plane], q, None, name) for plane, q, name in _biplane_runs(system, plan)]
+    else:
+        require_system(system, DoseError)
+        runs = [(None, system, q, frames, name) for q, frames, name in _runs(system, plan)]
+    systems, events, water, per_frame = [], [], [], []
+    for _, plane_system, q, frames, name in runs:
+        t = water_thickness(patient, *central_ray(plane_system, q))
         k = technique.kerma_per_frame(t)
         n = technique.frames if frames is None else frames
+        systems.append(plane_system)
         events.append(technique.event(q, k * n, name=name))
         water.append(t)
         per_frame.append(k)
-    return events, np.array(water), np.array(per_frame)
+    planes = None if runs[0][0] is None else tuple(r[0] for r in runs)
+    return systems, events, np.array(water), np.array(per_frame), planes
+
+
+def predict_events(system, plan, patient, technique: Technique | None = None) -> tuple[list, np.ndarray, np.ndarray]:
+    """The predicted events of ``plan`` on one system (see :func:`plan_dose`): (events, water-equivalent thickness
+    (m) and air kerma per frame (Gy) of each)."""
+    _, events, water, per_frame, _ = _predict(system, plan, patient, technique)
+    return events, water, per_frame
 
 
 def plan_dose(system, plan, patient, technique: Technique | None = None, *, spacing: float | None = None,
@@ -293,16 +344,20 @@ def plan_dose(system, plan, patient, technique: Technique | None = None, *, spac
     """The predicted skin dose of ``plan`` on ``system`` for ``patient`` (a parametric patient resting on the table
     top): ``plan`` a sequence of view plans (:func:`carmkin.views.plan_view` results), sweeps
     (:func:`carmkin.sweeps.plan_sweep`, one frame per view) or joint vectors (nq,) / (n, nq); each view a run of
-    ``technique.frames`` frames. ``skin``: the patient's cells already sampled (:func:`carmkin.dose.from_patient`),
-    else sampled at ``spacing`` (m, default :data:`carmkin.dose.skin.DEFAULT_SPACING`)."""
-    from carmkin.dose.compute import skin_dose
+    ``technique.frames`` frames. On a biplane (``system`` a :class:`carmkin.model.biplane.Biplane`), ``plan`` a
+    sequence of biplane plans (:func:`carmkin.biplane.plan_biplane`) or biplane joint vectors: each a run of both
+    planes at once (an event per plane, each on its plane's system; the map their sum). ``skin``: the patient's
+    cells already sampled (:func:`carmkin.dose.from_patient`), else sampled at ``spacing`` (m, default
+    :data:`carmkin.dose.skin.DEFAULT_SPACING`)."""
+    from carmkin.dose.compute import planes_dose
     from carmkin.dose.skin import DEFAULT_SPACING
 
     technique = Technique() if technique is None else technique
-    events, water, per_frame = predict_events(system, plan, patient, technique)
+    systems, events, water, per_frame, planes = _predict(system, plan, patient, technique)
     if skin is None:
-        m = skin_dose(system, events, patient, spacing=DEFAULT_SPACING if spacing is None else spacing)
+        m = planes_dose(zip(systems, events), patient, spacing=DEFAULT_SPACING if spacing is None else spacing)
     else:
-        patient.check_placement(system, "patient")
-        m = skin_dose(system, events, skin)
-    return PlanDose(tuple(events), water, per_frame, m, technique)
+        for s in {id(s): s for s in systems}.values():
+            patient.check_placement(s, "patient")
+        m = planes_dose(zip(systems, events), skin)
+    return PlanDose(tuple(events), water, per_frame, m, technique, planes)

@@ -204,3 +204,56 @@ def test_choose_view_reports_the_psd_with_and_without():
         dose.dose_aware_procedure(SYSTEM, [view], patient, tech, q_start=[0.0, 1.0])
     with pytest.raises(DoseError, match="at least one view"):
         dose.dose_aware_procedure(SYSTEM, [], patient, tech)
+
+
+# --- biplane pairs ------------------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def biplane_pair():
+    from carmkin.biplane import load_biplane, plan_biplane
+
+    biplane = load_biplane("angio-biplane")
+    body = ParametricPatient.on_table(biplane.frontal)
+    pair = plan_biplane(biplane, "ap", 90.0, patient=body)
+    assert pair.success, pair.reason
+    return biplane, body, pair
+
+
+def test_a_biplane_pair_is_both_planes_fields_on_different_skin_and_the_sum_of_the_planes(biplane_pair):
+    biplane, body, pair = biplane_pair
+    technique = dose.Technique(frames=10, field_mm=(150.0, 150.0))
+    both = dose.plan_dose(biplane, [pair, pair], body, technique, spacing=0.02)
+    assert both.planes == ("frontal", "lateral") * 2 and len(both.events) == 4
+    # each plane alone, through the one-plane route (its own system and its own view plan)
+    frontal = dose.plan_dose(biplane.frontal, [pair.frontal] * 2, body, technique, spacing=0.02)
+    lateral = dose.plan_dose(biplane.lateral, [pair.lateral] * 2, body, technique, spacing=0.02)
+    assert np.array_equal(frontal.map.cells, both.map.cells)
+    assert np.allclose(both.map.dose_gy, frontal.map.dose_gy + lateral.map.dose_gy, rtol=1e-12, atol=0.0)
+    assert np.array_equal(both.map.overlap, frontal.map.overlap + lateral.map.overlap)
+    assert both.map.psd_gy == pytest.approx(max(frontal.map.psd_gy, lateral.map.psd_gy), rel=1e-12)
+    # the frontal (AP, from below) field enters the back, the lateral one the side: no cell in both
+    normals = both.map.normals
+    f_cells, l_cells = both.map.events[0].cells, both.map.events[1].cells
+    assert len(f_cells) > 10 and len(l_cells) > 10
+    assert np.median(normals[f_cells, 1]) > 0.9            # facing down (+Y0): the back on the table
+    assert np.median(np.abs(normals[l_cells, 0])) > 0.9    # facing across (±X0): a side (a diverging beam also
+    # grazes a few cells facing up or down at its edges)
+    centre = {k: int(np.argmin(np.linalg.norm(both.map.cells - both.map.events[k].field_centre, axis=1)))
+              for k in (0, 1)}
+    assert normals[centre[0], 1] > 0.99 and abs(normals[centre[1], 0]) > 0.99
+    assert both.map.shared_cells()[0, 1] == 0
+
+
+def test_a_biplane_plan_refuses_a_one_plane_plan_and_a_failed_pair(biplane_pair):
+    from carmkin.biplane import BiplanePlan
+
+    biplane, body, pair = biplane_pair
+    with pytest.raises(DoseError, match=r"plan\[0\]: a plan of one plane \(ViewPlan\) on the biplane"):
+        dose.plan_dose(biplane, [pair.frontal], body)
+    failed = BiplanePlan(False, np.full(biplane.nq, np.nan), pair.frontal, None, np.nan, None, np.nan,
+                         reason="the lateral view is unreachable")
+    with pytest.raises(DoseError, match=r"plan\[0\]: the biplane plan failed \(the lateral view is unreachable\)"):
+        dose.plan_dose(biplane, [failed], body)
+    with pytest.raises(DoseError, match=r"plan\[0\] must be a biplane joint vector \(15,\)"):
+        dose.plan_dose(biplane, [np.zeros(10)], body)
+    by_joints = dose.plan_dose(biplane, [pair.q], body, spacing=0.05)
+    assert by_joints.planes == ("frontal", "lateral")
