@@ -184,17 +184,17 @@ def from_surface(vertices, faces, name: str = "surface") -> Skin:
     edges = np.sort(np.vstack([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
     _, counts = np.unique(edges, axis=0, return_counts=True)
     if np.any(counts != 2):
-        raise DoseError(f"the surface must be closed (every edge in two triangles): {int(np.sum(counts != 2))} of its "
-                        f"{len(counts)} edges are not")
+        raise DoseError(f"faces must close the surface (every edge in two triangles): {int(np.sum(counts != 2))} of "
+                        f"its {len(counts)} edges are not")
     directed = np.vstack([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
     if len(np.unique(directed, axis=0)) != len(directed):  # two triangles run an edge the same way: one is flipped
-        raise DoseError("the surface's triangles must be wound consistently (each edge run once each way)")
+        raise DoseError("faces must be wound consistently (each edge run once each way)")
     a, b, c = (vertices[faces[:, k]] for k in range(3))
     area_normals = np.cross(b - a, c - a) / 2  # |.| = the triangle's area, counter-clockwise winding
     o = a.mean(axis=0)  # about a point near the surface: less round-off
     volume = float(np.einsum("ij,ij->i", a - o, np.cross(b - o, c - o)).sum()) / 6.0
     if volume == 0.0:  # divergence theorem: positive when the winding is outward
-        raise DoseError("the surface encloses no volume")
+        raise DoseError("faces must enclose a volume, got a flat surface")
     normals = np.zeros_like(vertices)
     for k in range(3):
         np.add.at(normals, faces[:, k], area_normals)
@@ -203,7 +203,7 @@ def from_surface(vertices, faces, name: str = "surface") -> Skin:
     length = np.linalg.norm(normals, axis=1)
     flat = used & (length == 0.0)
     if flat.any():
-        raise DoseError(f"{int(flat.sum())} vertices of the surface have no normal (their triangles' normals cancel), "
+        raise DoseError(f"faces leave {int(flat.sum())} vertices without a normal (their triangles' normals cancel), "
                         f"e.g. vertex {int(np.flatnonzero(flat)[0])}")
     normals = np.sign(volume) * normals[used] / length[used][:, None]
     return Skin(vertices[used].copy(), normals, name=name)

@@ -111,11 +111,11 @@ def test_the_chord_through_a_surface_is_the_slabs_thickness_and_a_plan_on_it_is_
 def test_a_surface_that_is_open_flipped_or_without_faces_is_refused():
     plane = dose.plane(SYSTEM, spacing=0.1)
     vertices, faces = slab_surface(plane)
-    with pytest.raises(DoseError, match=r"the surface must be closed \(every edge in two triangles\): \d+ of its"):
+    with pytest.raises(DoseError, match=r"faces must close the surface \(every edge in two triangles\): \d+ of its"):
         dose.skin.from_surface(vertices, faces[1:])
     flipped = faces.copy()
     flipped[0] = flipped[0, ::-1]
-    with pytest.raises(DoseError, match="wound consistently"):
+    with pytest.raises(DoseError, match="faces must be wound consistently"):
         dose.skin.from_surface(vertices, flipped)
     with pytest.raises(DoseError, match=r"faces must index the \d+ vertices"):
         dose.skin.from_surface(vertices, faces + len(vertices))
