@@ -2,7 +2,8 @@
 
 Each skin cell is drawn as a square of side ``cell`` (m; default the cells' median nearest-neighbour spacing)
 centred on it, in the plane normal to its outward normal: two triangles, four vertices, all four of the cell's
-colour (meshcat vertex colours). The colour scale is :func:`dose_colours`: "hot", black at 0 Gy through red and
+colour (meshcat vertex colours). A skin that is a surface (a CT's, whose cells are its vertices: the map's
+``faces``) is drawn as that surface instead, each vertex its cell's colour (the colours blend across a triangle). The colour scale is :func:`dose_colours`: "hot", black at 0 Gy through red and
 yellow to white at the scale's maximum (default the map's peak skin dose); cells no event's field enters are drawn
 in :data:`NO_DOSE_RGB`. The PSD is marked by a cyan sphere. The page states the scale and its maximum (mGy) in a
 legend above the scene. Table frame, metres; node ``dose`` under the viewer's root (``dose/skin``, ``dose/psd``).
@@ -82,19 +83,24 @@ def cell_mesh(cells: np.ndarray, normals: np.ndarray, side: float) -> tuple[np.n
 def draw_dose(viewer: CArmViewer, m, max_gy: float | None = None, cell: float | None = None) -> float:
     """The map ``m`` (:class:`carmkin.dose.DoseMap`) as a coloured mesh under ``viewer``'s root, and the PSD marked.
     ``max_gy``: the top of the colour scale (Gy, default the map's PSD); ``cell``: the side of a cell's square
-    (m, default :func:`cell_spacing`). Returns the scale's maximum (Gy)."""
+    (m, default :func:`cell_spacing`; given, a surface's cells are drawn as squares too). Returns the scale's
+    maximum (Gy)."""
     top = float(m.psd_gy) if max_gy is None else float(max_gy)
     if top <= 0.0 and max_gy is None:
         top = 1.0  # no dose anywhere: every cell is NO_DOSE_RGB whatever the scale
     colours = dose_colours(m.dose_gy, top)
-    side = cell_spacing(m.cells) if cell is None else float(cell)
-    if not (np.isfinite(side) and side > 0):
-        raise VisualizationError(f"cell must be a positive side (m), got {cell!r}")
-    vertices, faces = cell_mesh(m.cells, m.normals, side)
+    if getattr(m, "faces", None) is not None and cell is None:  # a surface: its own triangles
+        vertices, faces = m.cells, m.faces
+    else:
+        side = cell_spacing(m.cells) if cell is None else float(cell)
+        if not (np.isfinite(side) and side > 0):
+            raise VisualizationError(f"cell must be a positive side (m), got {cell!r}")
+        vertices, faces = cell_mesh(m.cells, m.normals, side)
+        colours = np.repeat(colours, 4, axis=0)
     node = viewer.root[NODE]
     node.delete()
-    geometry = mg.TriangularMeshGeometry(vertices.astype(np.float32), faces.astype(np.uint32),
-                                         color=np.repeat(colours, 4, axis=0).astype(np.float32))
+    geometry = mg.TriangularMeshGeometry(vertices.astype(np.float32), np.asarray(faces).astype(np.uint32),
+                                         color=colours.astype(np.float32))
     node["skin"].set_object(geometry, mg.MeshBasicMaterial(vertexColors=True, side=2))
     mark = np.eye(4)
     mark[:3, 3] = m.psd_point

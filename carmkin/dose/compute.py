@@ -47,7 +47,8 @@ class EventDose:
 class DoseMap:
     """Cumulative entrance skin dose: ``cells`` (N, 3) m and ``normals`` (N, 3) in the table frame, ``dose_gy``
     (N,), ``overlap`` (N,) the number of entrance fields on each cell, ``psd_gy`` and ``psd_point`` (3,) m,
-    ``events`` (one :class:`EventDose` each)."""
+    ``events`` (one :class:`EventDose` each); ``faces`` (F, 3) the triangles joining the cells when the skin is a
+    surface (:func:`carmkin.dose.from_surface`), else None."""
 
     cells: np.ndarray
     normals: np.ndarray
@@ -56,6 +57,7 @@ class DoseMap:
     psd_gy: float
     psd_point: np.ndarray
     events: tuple
+    faces: np.ndarray | None = None
 
     def shared_cells(self) -> np.ndarray:
         """(E, E) int: the number of skin cells the entrance fields of events i and j both cover (the diagonal:
@@ -176,4 +178,5 @@ def planes_dose(pairs, patient, *, spacing: float = DEFAULT_SPACING) -> DoseMap:
         overlap[part.cells] += 1
         parts.append(part)
     peak = int(np.argmax(dose))
-    return DoseMap(skin.points, skin.normals, dose, overlap, float(dose[peak]), skin.points[peak].copy(), tuple(parts))
+    return DoseMap(skin.points, skin.normals, dose, overlap, float(dose[peak]), skin.points[peak].copy(), tuple(parts),
+                   skin.faces)

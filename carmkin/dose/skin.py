@@ -35,12 +35,14 @@ SPACING_RANGE = (0.001, 0.1)
 @dataclass(frozen=True)
 class Skin:
     """``points`` (N, 3) and outward unit ``normals`` (N, 3) in the table frame (m); ``two_sided``: every cell
-    in the beam counts (a sheet), else only those facing the source."""
+    in the beam counts (a sheet), else only those facing the source; ``faces`` (F, 3): the triangles joining the
+    cells when they are a surface's vertices (:func:`from_surface`), else None."""
 
     points: np.ndarray
     normals: np.ndarray
     two_sided: bool = False
     name: str = "skin"
+    faces: np.ndarray | None = None
 
 
 def _spacing(spacing) -> float:
@@ -206,7 +208,8 @@ def from_surface(vertices, faces, name: str = "surface") -> Skin:
         raise DoseError(f"faces leave {int(flat.sum())} vertices without a normal (their triangles' normals cancel), "
                         f"e.g. vertex {int(np.flatnonzero(flat)[0])}")
     normals = np.sign(volume) * normals[used] / length[used][:, None]
-    return Skin(vertices[used].copy(), normals, name=name)
+    index = np.cumsum(used) - 1  # a kept vertex's cell
+    return Skin(vertices[used].copy(), normals, name=name, faces=index[faces])
 
 
 def from_ct(patient) -> Skin:

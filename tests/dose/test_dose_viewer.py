@@ -168,3 +168,18 @@ def test_headless_chromium_shows_the_dosed_skin(ap_map, tmp_path):
     legend = 100  # rows of the legend, which states the two scales' maxima
     changed = np.abs(images["dose"][legend:] - images["none"][legend:]).max(axis=-1) > 30
     assert changed.sum() > 100, f"only {changed.sum()} pixels show the dose"
+
+
+def test_a_surface_skin_is_drawn_as_its_own_triangles_coloured_by_vertex():
+    """A closed surface's map (an octahedron of 5 cm about the isocentre, in the AP beam) keeps its faces; the page
+    draws them, one vertex per cell, each in its cell's colour."""
+    vertices = 0.05 * np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
+    faces = np.array([[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]])
+    skin = dose.from_surface(vertices, faces)
+    event = dose.Event(np.zeros(SYSTEM.nq), kvp=80.0, k_irp_gy=0.01, field_mm=(200.0, 200.0), filter={"Cu": 0.3})
+    m = dose.skin_dose(SYSTEM, [event], skin)
+    assert np.array_equal(m.faces, faces) and 0 < np.count_nonzero(m.dose_gy) < 6
+    drawn, colours, triangles = skin_mesh(dose_page(SYSTEM, m))
+    assert np.allclose(drawn, vertices, atol=1e-7) and np.array_equal(triangles, faces)
+    assert np.allclose(colours, dose_colours(m.dose_gy, m.psd_gy), atol=FLOAT32)
+    assert np.allclose(colours[np.argmax(m.dose_gy)], (1.0, 1.0, 1.0), atol=FLOAT32)
