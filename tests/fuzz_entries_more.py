@@ -265,8 +265,43 @@ def dose_event(rng):
     return maybe_junk(rng, Case(Event, (q, kvp, kerma, field_mm), check=check), ("q", "kvp", "k_irp_gy", "field_mm"))
 
 
+def dose_water_thickness(rng):
+    from carmkin.dose import water_thickness
+    from carmkin.patient import ParametricPatient
+
+    patient = ParametricPatient.on_table(PRESET)
+    start, end = rng.normal(scale=0.5, size=3), rng.normal(scale=0.5, size=3)
+
+    def check(t):  # a chord of the segment, at most the densest segment's density (the head's 1110) over water's
+        return math.isfinite(t) and 0.0 <= t <= 1.11 * float(np.linalg.norm(end - start)) + 1e-12
+    return maybe_junk(rng, Case(water_thickness, (patient, start, end), check=check), ("patient", "start", "end"))
+
+
+def dose_from_surface(rng):
+    from scipy.spatial import ConvexHull
+
+    from carmkin.dose import from_surface
+
+    points = rng.normal(scale=0.2, size=(int(rng.integers(4, 40)), 3))
+    hull = ConvexHull(points)
+    vertices, faces = points, hull.simplices.copy()
+    centre = points[hull.vertices].mean(axis=0)
+    a, b, c = (vertices[faces[:, k]] for k in range(3))
+    inward = np.einsum("ij,ij->i", np.cross(b - a, c - a), a - centre) < 0
+    faces[inward] = faces[inward][:, ::-1]
+    if rng.random() < 0.5:
+        faces = faces[:, ::-1]  # wound inward everywhere: the signed volume turns the normals out
+
+    def check(skin):  # convex: every cell's normal points away from the hull's centre, unit length
+        return (len(skin.points) == len(hull.vertices)
+                and bool(np.all(np.einsum("ij,ij->i", skin.normals, skin.points - centre) > 0))
+                and bool(np.allclose(np.linalg.norm(skin.normals, axis=1), 1.0)))
+    return maybe_junk(rng, Case(from_surface, (vertices, faces), check=check), ("vertices", "faces"))
+
+
 ENTRIES = {
-    "dose.Event": (dose_event, 1),
+    "dose.Event": (dose_event, 1), "dose.water_thickness": (dose_water_thickness, 0.5),
+    "dose.from_surface": (dose_from_surface, 1),
     "views.View.from_angles": (view_from_angles, 1), "views.View.from_pose": (view_from_pose, 1),
     "views.plan_view": (plan_a_view, 0.2), "datasets.sample_poses": (sample_some_poses, 0.2),
     "imaging.homography_between": (homography_between, 2), "imaging.dehomogenize": (dehomogenize, 1),

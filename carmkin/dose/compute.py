@@ -47,7 +47,8 @@ class EventDose:
 class DoseMap:
     """Cumulative entrance skin dose: ``cells`` (N, 3) m and ``normals`` (N, 3) in the table frame, ``dose_gy``
     (N,), ``overlap`` (N,) the number of entrance fields on each cell, ``psd_gy`` and ``psd_point`` (3,) m,
-    ``events`` (one :class:`EventDose` each)."""
+    ``events`` (one :class:`EventDose` each); ``faces`` (F, 3) the triangles joining the cells when the skin is a
+    surface (:func:`carmkin.dose.from_surface`), else None."""
 
     cells: np.ndarray
     normals: np.ndarray
@@ -56,6 +57,7 @@ class DoseMap:
     psd_gy: float
     psd_point: np.ndarray
     events: tuple
+    faces: np.ndarray | None = None
 
     def shared_cells(self) -> np.ndarray:
         """(E, E) int: the number of skin cells the entrance fields of events i and j both cover (the diagonal:
@@ -131,14 +133,7 @@ def event_dose(system, event: Event, skin: Skin, columns: np.ndarray | None = No
     return EventDose(event.name, hit, dose, k_isq, k_bs, k_med, k_tab, hvl, skin.points[hit][np.argmin(off_axis)])
 
 
-def skin_dose(system, events, patient, *, spacing: float = DEFAULT_SPACING) -> DoseMap:
-    """The cumulative entrance skin dose of ``events`` (a sequence of :class:`Event`) on ``system`` for
-    ``patient`` (a :class:`carmkin.patient.ParametricPatient` resting on the system's table top, else
-    :class:`~carmkin.errors.PatientModelError`, sampled at ``spacing`` m; or skin cells from
-    :func:`carmkin.dose.skin.plane` / :func:`~carmkin.dose.skin.cylinder`)."""
-    from carmkin.model.system import require_system
-
-    require_system(system, DoseError)
+def _check_events(events) -> list:
     if isinstance(events, (str, bytes, Event)) or not hasattr(events, "__iter__"):
         raise DoseError(f"events must be a sequence of carmkin.dose.Event, got {type(events).__name__}")
     events = list(events)
@@ -147,19 +142,41 @@ def skin_dose(system, events, patient, *, spacing: float = DEFAULT_SPACING) -> D
     for i, e in enumerate(events):
         if not isinstance(e, Event):
             raise DoseError(f"events[{i}] must be a carmkin.dose.Event, got {type(e).__name__}")
+    return events
+
+
+def skin_dose(system, events, patient, *, spacing: float = DEFAULT_SPACING) -> DoseMap:
+    """The cumulative entrance skin dose of ``events`` (a sequence of :class:`Event`) on ``system`` for
+    ``patient`` (a :class:`carmkin.patient.ParametricPatient` resting on the system's table top, else
+    :class:`~carmkin.errors.PatientModelError`, sampled at ``spacing`` m; or skin cells from
+    :func:`carmkin.dose.skin.plane` / :func:`~carmkin.dose.skin.cylinder`)."""
+    from carmkin.model.system import require_system
+
+    require_system(system, DoseError)
+    events = _check_events(events)
+    return planes_dose([(system, e) for e in events], patient, spacing=spacing)
+
+
+def planes_dose(pairs, patient, *, spacing: float = DEFAULT_SPACING) -> DoseMap:
+    """:func:`skin_dose` of events each on its own system: ``pairs`` a sequence of (system, :class:`Event`), the
+    systems sharing one table (a biplane's two planes); the map is the sum over the events, in their order."""
+    pairs = list(pairs)
+    _check_events([e for _, e in pairs])
     from carmkin.patient import ParametricPatient
 
     if isinstance(patient, ParametricPatient):
-        patient.check_placement(system, "patient")  # it must rest on this system's table top
+        for system in {id(s): s for s, _ in pairs}.values():
+            patient.check_placement(system, "patient")  # it must rest on this system's table top
     skin = skin_of(patient, spacing)
     dose = np.zeros(len(skin.points))
     overlap = np.zeros(len(skin.points), dtype=int)
     parts = []
     columns = np.ascontiguousarray(skin.points.T)
-    for e in events:
+    for system, e in pairs:
         part = event_dose(system, e, skin, columns)
         dose[part.cells] += part.dose_gy
         overlap[part.cells] += 1
         parts.append(part)
     peak = int(np.argmax(dose))
-    return DoseMap(skin.points, skin.normals, dose, overlap, float(dose[peak]), skin.points[peak].copy(), tuple(parts))
+    return DoseMap(skin.points, skin.normals, dose, overlap, float(dose[peak]), skin.points[peak].copy(), tuple(parts),
+                   skin.faces)

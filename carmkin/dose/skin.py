@@ -3,6 +3,9 @@
 - :func:`from_patient`: the parametric body (:class:`carmkin.patient.ParametricPatient`): its trunk box's faces
   and its capsules' cylinders and hemispheres sampled at ``spacing``; a cell inside another segment (where two
   segments overlap) is not skin and is dropped.
+- :func:`from_surface`: a closed triangle surface (a CT's skin, :func:`from_ct`): one cell per vertex that a
+  triangle uses, its normal the area-weighted mean of its triangles' normals, turned outward (the surface's
+  signed volume positive); the cells are the surface's vertices, whatever ``spacing``.
 - :func:`plane` and :func:`cylinder`: PySkinDose's simple phantoms (a flat sheet, an elliptic cylinder), placed
   on the system's table top the way PySkinDose places them on its table: head end at the top's head end,
   centred across it, on a pad of ``pad`` m.
@@ -32,12 +35,14 @@ SPACING_RANGE = (0.001, 0.1)
 @dataclass(frozen=True)
 class Skin:
     """``points`` (N, 3) and outward unit ``normals`` (N, 3) in the table frame (m); ``two_sided``: every cell
-    in the beam counts (a sheet), else only those facing the source."""
+    in the beam counts (a sheet), else only those facing the source; ``faces`` (F, 3): the triangles joining the
+    cells when they are a surface's vertices (:func:`from_surface`), else None."""
 
     points: np.ndarray
     normals: np.ndarray
     two_sided: bool = False
     name: str = "skin"
+    faces: np.ndarray | None = None
 
 
 def _spacing(spacing) -> float:
@@ -145,7 +150,7 @@ def from_patient(patient, spacing: float = DEFAULT_SPACING) -> Skin:
     from carmkin.patient import ParametricPatient
 
     if not isinstance(patient, ParametricPatient):
-        raise DoseError(f"patient must be a carmkin.patient.ParametricPatient or a carmkin.dose Skin, got "
+        raise DoseError(f"patient must be a carmkin.patient.ParametricPatient, a CTPatient or a carmkin.dose Skin, got "
                         f"{type(patient).__name__}")
     h = _spacing(spacing)
     parts = []
@@ -166,6 +171,66 @@ def from_patient(patient, spacing: float = DEFAULT_SPACING) -> Skin:
     return Skin(points, normals, name="parametric patient")
 
 
+def from_surface(vertices, faces, name: str = "surface") -> Skin:
+    """Skin cells of a closed triangle surface: ``vertices`` (N, 3) m (table frame) and ``faces`` (F, 3) vertex
+    indices; a vertex no triangle uses is not skin; a vertex whose triangles' normals cancel is refused."""
+    from carmkin.validation import real_array
+
+    vertices = real_array(vertices, "vertices", (None, 3), error=DoseError, unit="m")
+    faces = np.asarray(faces)
+    if faces.ndim != 2 or faces.shape[1] != 3 or not len(faces) or not np.issubdtype(faces.dtype, np.integer):
+        raise DoseError(f"faces must be (F, 3) integer vertex indices, F >= 1, got {faces.dtype} of shape "
+                        f"{faces.shape}")
+    if faces.min() < 0 or faces.max() >= len(vertices):
+        raise DoseError(f"faces must index the {len(vertices)} vertices, got indices {faces.min()}..{faces.max()}")
+    edges = np.sort(np.vstack([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
+    _, counts = np.unique(edges, axis=0, return_counts=True)
+    if np.any(counts != 2):
+        raise DoseError(f"faces must close the surface (every edge in two triangles): {int(np.sum(counts != 2))} of "
+                        f"its {len(counts)} edges are not")
+    directed = np.vstack([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    if len(np.unique(directed, axis=0)) != len(directed):  # two triangles run an edge the same way: one is flipped
+        raise DoseError("faces must be wound consistently (each edge run once each way)")
+    a, b, c = (vertices[faces[:, k]] for k in range(3))
+    area_normals = np.cross(b - a, c - a) / 2  # |.| = the triangle's area, counter-clockwise winding
+    o = a.mean(axis=0)  # about a point near the surface: less round-off
+    volume = float(np.einsum("ij,ij->i", a - o, np.cross(b - o, c - o)).sum()) / 6.0
+    if volume == 0.0:  # divergence theorem: positive when the winding is outward
+        raise DoseError("faces must enclose a volume, got a flat surface")
+    normals = np.zeros_like(vertices)
+    for k in range(3):
+        np.add.at(normals, faces[:, k], area_normals)
+    used = np.zeros(len(vertices), bool)
+    used[faces.ravel()] = True
+    length = np.linalg.norm(normals, axis=1)
+    flat = used & (length == 0.0)
+    if flat.any():
+        raise DoseError(f"faces leave {int(flat.sum())} vertices without a normal (their triangles' normals cancel), "
+                        f"e.g. vertex {int(np.flatnonzero(flat)[0])}")
+    normals = np.sign(volume) * normals[used] / length[used][:, None]
+    index = np.cumsum(used) - 1  # a kept vertex's cell
+    return Skin(vertices[used].copy(), normals, name=name, faces=index[faces])
+
+
+def from_ct(patient) -> Skin:
+    """Skin cells of a :class:`carmkin.patient.CTPatient` (:meth:`~carmkin.patient.CTPatient.from_ct`, placed with
+    ``on_table``): its marching-cubes surface (:func:`from_surface`) in the table frame."""
+    from carmkin.patient import CTPatient
+
+    if not isinstance(patient, CTPatient):
+        raise DoseError(f"patient must be a carmkin.patient.CTPatient, got {type(patient).__name__}")
+    if patient.faces is None:
+        raise DoseError("the CT patient has no surface triangles (faces=None): build it with CTPatient.from_ct")
+    return from_surface(patient.surface(), patient.faces, name="CT surface")
+
+
 def skin_of(patient, spacing: float = DEFAULT_SPACING) -> Skin:
-    """``patient`` as skin cells: a :class:`Skin` as it is, a parametric patient sampled at ``spacing``."""
-    return patient if isinstance(patient, Skin) else from_patient(patient, spacing)
+    """``patient`` as skin cells: a :class:`Skin` as it is, a parametric patient sampled at ``spacing``, a CT patient's
+    surface (:func:`from_ct`; its vertices, whatever ``spacing``)."""
+    from carmkin.patient import CTPatient
+
+    if isinstance(patient, Skin):
+        return patient
+    if isinstance(patient, CTPatient):
+        return from_ct(patient)
+    return from_patient(patient, spacing)

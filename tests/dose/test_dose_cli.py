@@ -48,3 +48,27 @@ def test_dose_map_bad_input_is_one_line(argv, words, tmp_path, capsys):
         code = exc.code
     err = capsys.readouterr().err
     assert code == 2 and words in err and len(err.strip().splitlines()) == 1
+
+
+def test_dose_map_on_the_parametric_patient_takes_the_patient_flags_in_mm(tmp_path, capsys):
+    from carmkin.patient import ParametricPatient
+
+    path = write(tmp_path / "r.dcm", [event_items(**{"Positioner Primary Angle": (0.0, "deg"),
+                                                     "Positioner Secondary Angle": (0.0, "deg")})])
+    out_json = tmp_path / "d.json"
+    argv = ["dose", "map", "--rdsr", str(path), "--phantom", "patient", "--patient-height-mm", "1800",
+            "--patient-mass-kg", "80", "--patient-chest-z-mm", "-100", "--spacing-mm", "20", "--json", str(out_json)]
+    assert main(argv) == 0
+    system = carmkin.load_preset("angio-floor")
+    body = ParametricPatient.on_table(system, height=1.8, mass=80.0, chest_z=-0.1)
+    expected = dose.skin_dose(system, dose.read_rdsr(path, system), body, spacing=0.02)
+    assert json.loads(out_json.read_text())["psd_mgy"] == pytest.approx(expected.psd_gy * 1e3, rel=1e-12)
+    capsys.readouterr()
+    for extra, words in ((["--patient", "none"], "--phantom patient needs --patient parametric"),
+                         (["--patient-position", "FFS"], "--patient-position FFS: a report's angles are read for")):
+        assert main(argv[:-2] + extra) == 2
+        err = capsys.readouterr().err
+        assert words in err and len(err.strip().splitlines()) == 1
+    with pytest.raises(SystemExit) as info:  # the old flag in metres is gone: one grammar, mm
+        main(["dose", "map", "--rdsr", str(path), "--height-m", "1.8"])
+    assert info.value.code == 2
