@@ -442,3 +442,14 @@ def test_a_motorized_joint_is_not_described_as_moved_by_hand():
         for kind in ("speed", "acceleration"):
             note = provenance[f"motion.{joint}_{kind}_{unit}_s{'2' if kind == 'acceleration' else ''}"].note
             assert "by hand" not in note, (joint, kind, note)
+
+
+def test_robotic_carms_source_distances_come_from_one_device():
+    """Issue 41: robotic-carm paired Siemens' 785 mm source–isocentre distance with Philips' 1195 mm
+    source–detector distance. Both now come from the one AXIOM-Artis dose report, as angio-floor's do."""
+    robot, floor = carmkin.load_preset("robotic-carm"), carmkin.load_preset("angio-floor")
+    assert (robot.carm.orbital_offset, robot.carm.source_to_detector) == (0.785, 1.198)
+    assert (robot.carm.orbital_offset, robot.carm.source_to_detector) == (
+        floor.carm.orbital_offset, floor.carm.source_to_detector)
+    notes = [preset_provenance("robotic-carm")[f"carm.{key}"].note for key in ("orbital_offset_mm", "source_to_detector_mm")]
+    assert all("pyskindose RDSR siemens_axiom_artis.dcm" in note for note in notes), notes
