@@ -43,7 +43,11 @@ class OptimalViewMap:
     ``reach`` map itself; ``optimal`` (primary_deg, secondary_deg) the best-scoring cell, ``best_reachable``
     the best reachable cell or ``None``; ``loss`` the best reachable cell's score, foreshortening and overlap
     minus the optimum's (``None`` when nothing is reachable); ``plan`` the :class:`ViewPlan` of the best
-    reachable view; ``distance`` the source–target distance (m) of the nominal views; ``target`` (3,) m."""
+    reachable view; ``distance`` the source–target distance (m) of the nominal views; ``target`` (3,) m;
+    ``plan_metrics`` the plan's own ``foreshortening``, ``worst_foreshortening``, ``overlap`` (fractions) and
+    ``distance`` (m, source–target along its beam), at the source pose where the plan stands
+    (``system.fk(plan.q)``: its distance and roll, not the cell's nominal view; ``None`` without a successful
+    plan)."""
 
     primary_deg: np.ndarray
     secondary_deg: np.ndarray
@@ -61,6 +65,7 @@ class OptimalViewMap:
     loss: dict | None
     plan: ViewPlan | None
     distance: float
+    plan_metrics: dict | None = None
 
     @property
     def optimum_reachable(self) -> bool:
@@ -90,6 +95,11 @@ class OptimalViewMap:
                 lines.append(f"the optimal view is unreachable; the best reachable view loses {self.loss['score']:.4f} of "
                              f"score ({100 * self.loss['foreshortening']:+.2f} % foreshortening, "
                              f"{100 * self.loss['overlap']:+.2f} % overlap)")
+        if self.plan_metrics is not None:
+            m = self.plan_metrics
+            lines.append(f"the plan stands {1e3 * m['distance']:.0f} mm from the target: foreshortening "
+                         f"{100 * m['foreshortening']:.2f} % (worst segment {100 * m['worst_foreshortening']:.2f} %), "
+                         f"overlap {100 * m['overlap']:.2f} % there")
         return lines
 
 
@@ -175,8 +185,26 @@ def optimal_view_map(system, centreline, primary_deg=np.arange(-90, 91), seconda
             the_plan = plan_view(system, view, patient, margin=margin, nearest=False, table_samples=table_samples,
                                  qp=False)
     clearance = np.where(reach.reachable, reach.clearance, np.nan)
+    plan_metrics = None
+    if the_plan is not None and the_plan.success:
+        plan_metrics = _metrics_at(system, system.fk(the_plan.q), line, lines, radii, target)
     return OptimalViewMap(p, s, target, F, W, O, score, weights, reach.reachable, clearance, reach, optimal, best,
-                          loss, the_plan, distance)
+                          loss, the_plan, distance, plan_metrics)
+
+
+def _metrics_at(system, pose, line, lines, radii, target) -> dict:
+    """Foreshortening, worst foreshortening, overlap and the source–target distance along the beam of the view
+    at ``pose`` (4, 4), the source pose a plan stands at (issue 41: the map's cells are nominal views)."""
+    pose = np.asarray(pose, dtype=float)[None]
+    distance = float(pose[0, :3, 2] @ (np.asarray(target, dtype=float) - pose[0, :3, 3]))
+    F, W = metrics.foreshortening(line.points, pose, distance)
+    O = np.zeros(1)
+    if lines:
+        from carmkin.imaging import intrinsics
+
+        O = metrics.overlap(line.points, [c.points for c in lines], pose, intrinsics(system)[0], radii)
+    return {"foreshortening": float(F[0]), "worst_foreshortening": float(W[0]), "overlap": float(O[0]),
+            "distance": distance}
 
 
 @dataclass(frozen=True)
