@@ -202,3 +202,82 @@ def test_issue_41_junk_is_a_typed_error_naming_the_argument(name, error, call):
     with pytest.raises(error) as info:
         call()
     assert name in str(info.value)
+
+
+# --- issue 41, the rest of the fuzz's classes: "Still from before" and UNTYPED leftovers --------------------
+def _tree():
+    from carmkin.views.anatomy import synthetic_tree
+
+    return synthetic_tree(np.array([0.02, 0.05, -0.02]), 0)
+
+
+def _experiment_config(**changes):
+    from carmkin.reposition.experiment import ExperimentConfig
+
+    return ExperimentConfig(**changes)
+
+
+def _anatomy_map(others):
+    from carmkin.views import optimal_view_map
+
+    return optimal_view_map(PRESET, _tree()[0], [0.0], [0.0], None, others, plan=False)
+
+
+CASES_41_MORE = [
+    ("roll", carmkin.errors.ViewError, lambda: carmkin.views.View.from_pose(PRESET.fk(_q()), 0.6, roll="False")),
+    ("seed", carmkin.errors.CentrelineError, lambda: carmkin.views.anatomy.synthetic_tree(np.zeros(3), None)),
+    ("seed", carmkin.errors.CentrelineError, lambda: carmkin.views.anatomy.synthetic_tree(np.zeros(3), 1.5)),
+    ("vessels", carmkin.errors.CentrelineError, lambda: carmkin.views.anatomy.synthetic_tree(np.zeros(3), 0, 10 ** 30)),
+    ("points", carmkin.errors.CentrelineError, lambda: carmkin.views.anatomy.synthetic_tree(np.zeros(3), 0, 4, "40")),
+    ("spacing", SimulationError, lambda: stitching.phantom_points(spacing=0.0)),
+    ("length", SimulationError, lambda: stitching.phantom_points(length=0.0)),
+    ("length", SimulationError, lambda: stitching.phantom_points(length=-1.0)),
+    ("rows", SimulationError, lambda: stitching.phantom_points(rows=0)),
+    ("width", SimulationError, lambda: stitching.phantom_points(width=-0.08)),
+    ("markers", SimulationError, lambda: stitching.phantom_points(length=10.0, spacing=1e-9)),
+    ("corner_noise_px", SimulationError, lambda: _experiment_config(corner_noise_px="junk")),
+    ("operator", SimulationError, lambda: _experiment_config(operator="junk")),
+    ("guidance", SimulationError, lambda: _experiment_config(guidance="junk")),
+    ("mount_error", SimulationError, lambda: _experiment_config(mount_error="junk")),
+    ("calibration_positions", SimulationError, lambda: _experiment_config(calibration_positions="junk")),
+    ("table_shift", SimulationError, lambda: _experiment_config(table_shift="junk")),
+    ("max_steps", SimulationError, lambda: _experiment_config(max_steps="junk")),
+    ("reference_ranges", SimulationError, lambda: _experiment_config(reference_ranges="junk")),
+    ("reference_ranges['vertical']", SimulationError, lambda: _experiment_config(reference_ranges={"vertical": (1, 0)})),
+    ("others", carmkin.errors.AnatomyError, lambda: _anatomy_map(5)),
+]
+
+
+@pytest.mark.parametrize("name, error, call", CASES_41_MORE, ids=[f"{i}-{c[0]}" for i, c in enumerate(CASES_41_MORE)])
+def test_issue_41_remaining_junk_is_a_typed_error_naming_the_argument(name, error, call):
+    """Issue 41 (fuzz, "Still from before", LOW, UNTYPED, HANG): a truthy string as View.from_pose(roll=),
+    synthetic_tree's seed None (not deterministic) or 10**30 vessels (hung), phantom_points' zero or negative
+    sizes and spacing=0 (ZeroDivisionError), junk ExperimentConfig fields (accepted, or TypeError/ValueError),
+    an int as optimal_view_map(others=) (TypeError): each a typed error naming the argument."""
+    with pytest.raises(error) as info:
+        call()
+    assert name in str(info.value)
+
+
+def test_other_vessels_with_per_point_radii_of_different_lengths_are_mapped():
+    """Issue 41 (fuzz, MED): optimal_view_map crashed (numpy's ValueError) when the other vessels carried
+    per-point radii of different lengths. Each vessel's radii now stay its own: the overlap equals the one of a
+    map given each vessel's one radius where its radii are all equal."""
+    from carmkin.views import optimal_view_map
+    from carmkin.views.anatomy import Centreline
+
+    tree = _tree()
+    a, b = tree[1].points, tree[2].points[:10]
+    ragged = [Centreline(a, np.full(len(a), 1e-3), "a"), Centreline(b, np.full(len(b), 2e-3), "b")]
+    primary, secondary = np.arange(-90.0, 91.0, 30.0), np.array([-30.0, 0.0, 30.0])
+    m = optimal_view_map(PRESET, tree[0], primary, secondary, None, ragged, plan=False)
+    from carmkin.imaging import intrinsics
+    from carmkin.views import metrics
+
+    P, S = np.meshgrid(primary, secondary, indexing="ij")
+    poses = metrics.xa_poses(P.ravel(), S.ravel(), m.target, m.distance)
+    K = intrinsics(PRESET)[0]
+    expected = np.maximum(*(metrics.overlap(tree[0].points, [v], poses, K, r) for v, r in ((a, 1e-3), (b, 2e-3))))
+    union = metrics.overlap(tree[0].points, [a, b], poses, K, [1e-3, 2e-3]).reshape(m.overlap.shape)
+    assert np.array_equal(m.overlap, union)
+    assert np.all(union.ravel() >= expected - 1e-12) and np.any(union > 0)

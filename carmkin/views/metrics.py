@@ -162,7 +162,9 @@ def overlap(points, others, poses, K, radii=DEFAULT_RADIUS, counts=None) -> np.n
     points = np.asarray(points, dtype=float)
     poses = np.asarray(poses, dtype=float)
     others = list(others)
-    radii = [radii] * len(others) if np.ndim(radii) == 0 else list(radii)
+    if not isinstance(radii, (list, tuple)):  # one radius for all, or (M,) per point of a single vessel
+        radii = [radii] * len(others) if np.ndim(radii) == 0 else list(radii)
+    # a list: one entry per vessel, each a radius or (M,) per point; lengths may differ (issue 41)
     if counts is None:
         counts = subdivisions(points, poses, K, per_view=True)
     counts = np.broadcast_to(np.asarray(counts, dtype=np.int64), (len(poses), len(points) - 1))

@@ -124,7 +124,7 @@ def _radius(value, name="radius") -> float:
 def _others(others, radius) -> tuple[list[Centreline], list]:
     if isinstance(others, np.ndarray) and others.ndim == 3:  # (K, M, 3): K vessels of M points each
         others = list(others)
-    if isinstance(others, (np.ndarray, str, bytes)) or isinstance(others, Centreline):
+    if isinstance(others, (np.ndarray, str, bytes)) or isinstance(others, Centreline) or not hasattr(others, "__iter__"):
         raise AnatomyError("others must be a sequence of centrelines ((M, 3) arrays in m or Centreline), got "
                            f"{type(others).__name__} {getattr(others, 'shape', '')}".rstrip())
     lines = [as_centreline(o, f"others[{k}]") for k, o in enumerate(others)]
