@@ -339,3 +339,13 @@ def test_issue_41_sizes_that_are_not_sequences_are_typed(name, call, junk):
     with pytest.raises(carmkin.CarmkinError) as info:
         call(junk)
     assert name in str(info.value)
+
+
+@pytest.mark.parametrize("call", [
+    lambda: carmkin.views.plane_views(PRESET, [[0.01, 0, 0], [0, 0.01, 0], [-0.01, 0, 0.001]], count=4, plan="False"),
+    lambda: carmkin.views.optimal_view_map(PRESET, _tree()[0], [0.0], [0.0], plan="False"),
+], ids=["plane_views", "optimal_view_map"])
+def test_issue_41_a_truthy_string_as_plan_is_refused(call):
+    """Issue 41 (fuzz, LOW): plane_views(plan="False") planned (a non-empty string reads as True)."""
+    with pytest.raises(carmkin.errors.ViewError, match="plan must be True or False"):
+        call()

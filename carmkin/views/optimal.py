@@ -147,8 +147,11 @@ def optimal_view_map(system, centreline, primary_deg=np.arange(-90, 91), seconda
     vessels, (M, 3) m each, drawn as tubes of their radii or ``radius`` (m, default
     :data:`carmkin.views.metrics.DEFAULT_RADIUS`). ``target`` (3,) m: default the centreline's arc midpoint.
     ``plan``: plan the best reachable view (:func:`plan_view`, no ``q_current``)."""
+    from carmkin.validation import flag
+
     line = as_centreline(centreline, "centreline")
     radius = _radius(radius)
+    plan = flag(plan, "plan", error=ViewError)
     lines, radii = _others(others, radius)
     weights = _weights(weights)
     target = line.midpoint if target is None else _point(target, "target")
@@ -234,10 +237,11 @@ def plane_views(system, plane, patient=None, *, count: int = FAMILY_SIZE, target
     """The ``count`` beams in ``plane`` (a :class:`Plane` or ≥ 3 points (K, 3) m, table frame), evenly spaced
     over the full turn, through ``target`` (default the plane's centre): which are reachable with ``patient``
     (the search of :func:`reach_map`), and the reachable one that best separates the plane's points."""
-    from carmkin.validation import integer
+    from carmkin.validation import flag, integer
 
     plane = plane if isinstance(plane, Plane) else plane_from_points(plane)
     count = integer(count, "count", low=3, high=36000, error=ViewError)
+    plan = flag(plan, "plan", error=ViewError)  # a string "False" would read as True (issue 41)
     margin = real_scalar(margin, "margin", error=ViewError, low=0.0, high=1.0, unit="m")
     target = plane.centre if target is None else _point(target, "target")
     position = _position(patient, position)
