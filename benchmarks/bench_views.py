@@ -127,10 +127,23 @@ def main() -> None:
         plan_view(system, view, patient, nearest=False)
         times.append(time.perf_counter() - start)
     print(row("plan_view median (no nearest-view search)", statistics.median(times), unit="ms"))
+    unreachable_nearest(system, times)
     polish_cost(system, patient, target, primary, secondary)
     qp_after_closed_form(target)
     robot_held_map(target, 10 if args.quick else 2)
     against_previous_code(step)
+
+
+def unreachable_nearest(system, plan_times) -> None:
+    """Issue 41: ``plan_view(nearest=True)`` of a view unreachable everywhere (a target 3 m along the table)
+    searches every band of the sphere; its CPU time against the median plan without the search (13.1 s before
+    the directions were solved as arrays, 6.2 s after, on this shared machine)."""
+    view = View.from_direction((0.0, 0.0, 1.0), np.array([0.0, 0.0, 3.0]))
+    start = time.process_time()
+    plan = plan_view(system, view, None, nearest=True)
+    assert not plan.success and plan.nearest is None
+    print(row("plan_view, unreachable everywhere, nearest=True (CPU)", time.process_time() - start,
+              statistics.median(plan_times), unit="s"))
 
 
 def polish_cost(system, patient, target, primary, secondary, repeats: int = 5) -> None:

@@ -363,6 +363,18 @@ def integer(value, name: str, *, low: int | None = None, high: int | None = None
     return int(value)
 
 
+def sequence_length(value) -> int | None:
+    """The number of items of a sequence (list, tuple, 1-d or larger array); ``None`` for a string, bytes, a
+    dict, a scalar or a 0-d array — whose ``len()`` would raise TypeError or count characters or keys (issue 41:
+    a 0-d string array, a complex number or a dict as a size)."""
+    if isinstance(value, (str, bytes, dict)):
+        return None
+    try:
+        return len(value)
+    except TypeError:
+        return None
+
+
 def flag(value, name: str, *, error: type[CarmkinError] = InvalidParameterError) -> bool:
     """``value`` as a bool when it is True or False (Python or numpy), else ``error`` naming ``name``: a string
     ``"False"`` would read as True, None or a number as a guess."""

@@ -202,3 +202,150 @@ def test_issue_41_junk_is_a_typed_error_naming_the_argument(name, error, call):
     with pytest.raises(error) as info:
         call()
     assert name in str(info.value)
+
+
+# --- issue 41, the rest of the fuzz's classes: "Still from before" and UNTYPED leftovers --------------------
+def _tree():
+    from carmkin.views.anatomy import synthetic_tree
+
+    return synthetic_tree(np.array([0.02, 0.05, -0.02]), 0)
+
+
+def _experiment_config(**changes):
+    from carmkin.reposition.experiment import ExperimentConfig
+
+    return ExperimentConfig(**changes)
+
+
+def _anatomy_map(others):
+    from carmkin.views import optimal_view_map
+
+    return optimal_view_map(PRESET, _tree()[0], [0.0], [0.0], None, others, plan=False)
+
+
+CASES_41_MORE = [
+    ("roll", carmkin.errors.ViewError, lambda: carmkin.views.View.from_pose(PRESET.fk(_q()), 0.6, roll="False")),
+    ("seed", carmkin.errors.CentrelineError, lambda: carmkin.views.anatomy.synthetic_tree(np.zeros(3), None)),
+    ("seed", carmkin.errors.CentrelineError, lambda: carmkin.views.anatomy.synthetic_tree(np.zeros(3), 1.5)),
+    ("vessels", carmkin.errors.CentrelineError, lambda: carmkin.views.anatomy.synthetic_tree(np.zeros(3), 0, 10 ** 30)),
+    ("points", carmkin.errors.CentrelineError, lambda: carmkin.views.anatomy.synthetic_tree(np.zeros(3), 0, 4, "40")),
+    ("spacing", SimulationError, lambda: stitching.phantom_points(spacing=0.0)),
+    ("length", SimulationError, lambda: stitching.phantom_points(length=0.0)),
+    ("length", SimulationError, lambda: stitching.phantom_points(length=-1.0)),
+    ("rows", SimulationError, lambda: stitching.phantom_points(rows=0)),
+    ("width", SimulationError, lambda: stitching.phantom_points(width=-0.08)),
+    ("markers", SimulationError, lambda: stitching.phantom_points(length=10.0, spacing=1e-9)),
+    ("corner_noise_px", SimulationError, lambda: _experiment_config(corner_noise_px="junk")),
+    ("operator", SimulationError, lambda: _experiment_config(operator="junk")),
+    ("guidance", SimulationError, lambda: _experiment_config(guidance="junk")),
+    ("mount_error", SimulationError, lambda: _experiment_config(mount_error="junk")),
+    ("calibration_positions", SimulationError, lambda: _experiment_config(calibration_positions="junk")),
+    ("table_shift", SimulationError, lambda: _experiment_config(table_shift="junk")),
+    ("max_steps", SimulationError, lambda: _experiment_config(max_steps="junk")),
+    ("reference_ranges", SimulationError, lambda: _experiment_config(reference_ranges="junk")),
+    ("reference_ranges['vertical']", SimulationError, lambda: _experiment_config(reference_ranges={"vertical": (1, 0)})),
+    ("others", carmkin.errors.AnatomyError, lambda: _anatomy_map(5)),
+]
+
+
+@pytest.mark.parametrize("name, error, call", CASES_41_MORE, ids=[f"{i}-{c[0]}" for i, c in enumerate(CASES_41_MORE)])
+def test_issue_41_remaining_junk_is_a_typed_error_naming_the_argument(name, error, call):
+    """Issue 41 (fuzz, "Still from before", LOW, UNTYPED, HANG): a truthy string as View.from_pose(roll=),
+    synthetic_tree's seed None (not deterministic) or 10**30 vessels (hung), phantom_points' zero or negative
+    sizes and spacing=0 (ZeroDivisionError), junk ExperimentConfig fields (accepted, or TypeError/ValueError),
+    an int as optimal_view_map(others=) (TypeError): each a typed error naming the argument."""
+    with pytest.raises(error) as info:
+        call()
+    assert name in str(info.value)
+
+
+def test_other_vessels_with_per_point_radii_of_different_lengths_are_mapped():
+    """Issue 41 (fuzz, MED): optimal_view_map crashed (numpy's ValueError) when the other vessels carried
+    per-point radii of different lengths. Each vessel's radii now stay its own: the overlap equals the one of a
+    map given each vessel's one radius where its radii are all equal."""
+    from carmkin.views import optimal_view_map
+    from carmkin.views.anatomy import Centreline
+
+    tree = _tree()
+    a, b = tree[1].points, tree[2].points[:10]
+    ragged = [Centreline(a, np.full(len(a), 1e-3), "a"), Centreline(b, np.full(len(b), 2e-3), "b")]
+    primary, secondary = np.arange(-90.0, 91.0, 30.0), np.array([-30.0, 0.0, 30.0])
+    m = optimal_view_map(PRESET, tree[0], primary, secondary, None, ragged, plan=False)
+    from carmkin.imaging import intrinsics
+    from carmkin.views import metrics
+
+    P, S = np.meshgrid(primary, secondary, indexing="ij")
+    poses = metrics.xa_poses(P.ravel(), S.ravel(), m.target, m.distance)
+    K = intrinsics(PRESET)[0]
+    expected = np.maximum(*(metrics.overlap(tree[0].points, [v], poses, K, r) for v, r in ((a, 1e-3), (b, 2e-3))))
+    union = metrics.overlap(tree[0].points, [a, b], poses, K, [1e-3, 2e-3]).reshape(m.overlap.shape)
+    assert np.array_equal(m.overlap, union)
+    assert np.all(union.ravel() >= expected - 1e-12) and np.any(union > 0)
+
+
+def _preset_file(tmp_path, data: bytes):
+    path = tmp_path / "user.toml"
+    path.write_bytes(data)
+    return path
+
+
+def _builtin_text():
+    from pathlib import Path
+
+    return (Path(carmkin.__file__).parent / "presets" / "siremobile-iso-c3d.toml").read_text()
+
+
+def _dict_with_key(section, key):
+    import tomllib
+
+    data = tomllib.loads(_builtin_text())
+    (data if section is None else data[section])[key] = 1
+    return data
+
+
+@pytest.mark.parametrize("name, make", [
+    ("not a UTF-8 text file", lambda tmp: carmkin.load_preset(_preset_file(tmp, b"\xff\xfe" + _builtin_text().encode()))),
+    ("cannot hold as a number", lambda tmp: carmkin.load_preset(_preset_file(tmp, _builtin_text().replace(
+        "detector_columns = 800", "detector_columns = " + "9" * 5000).encode()))),
+    ("every key in the top level must be a string, got 5",
+     lambda tmp: carmkin.presets.system_from_dict(_dict_with_key(None, 5))),
+    ("every key in [carm] must be a string, got 7",
+     lambda tmp: carmkin.presets.system_from_dict(_dict_with_key("carm", 7))),
+])
+def test_issue_41_junk_preset_files_are_a_preset_error(name, make, tmp_path):
+    """Issue 41 (fuzz, "Still from before"): a non-UTF-8 preset file (UnicodeDecodeError), a 5000-digit
+    integer (Python's ValueError) and a non-string key in a preset dict (difflib's TypeError)."""
+    assert "detector_columns = 800" in _builtin_text()
+    with pytest.raises(carmkin.errors.PresetError) as info:
+        make(tmp_path)
+    assert name in str(info.value)
+
+
+@pytest.mark.parametrize("name, call", [
+    ("BodyGeometry.cart_size", lambda junk: carmkin.BodyGeometry(cart_size=junk)),
+    ("BodyGeometry.source_housing", lambda junk: carmkin.BodyGeometry(source_housing=junk)),
+    ("TableGeometry.top_size", lambda junk: carmkin.TableGeometry(top_size=junk)),
+    ("TableGeometry.top_center", lambda junk: carmkin.TableGeometry(top_center=junk)),
+    ("TableGeometry.joints", lambda junk: carmkin.TableGeometry(joints=junk)),
+    ("principal_point", lambda junk: PRESET.carm.replace(principal_point=junk) if hasattr(PRESET.carm, "replace")
+     else __import__("dataclasses").replace(PRESET.carm, principal_point=junk)),
+    ("size", lambda junk: __import__("carmkin.interop.simulators").interop.simulators.diffdrr_detector(
+        PRESET.carm.intrinsics(), junk, 980.0)),
+])
+@pytest.mark.parametrize("junk", [np.array("1"), 1j, {"a": 1, "b": 2}], ids=["0-d string array", "complex", "dict"])
+def test_issue_41_sizes_that_are_not_sequences_are_typed(name, call, junk):
+    """Issue 41 (fuzz, "Still from before"): 0-d string arrays, complex numbers or a dict as body, table or
+    detector sizes (and the DRR detector size) escaped as TypeError/KeyError from len() or indexing."""
+    with pytest.raises(carmkin.CarmkinError) as info:
+        call(junk)
+    assert name in str(info.value)
+
+
+@pytest.mark.parametrize("call", [
+    lambda: carmkin.views.plane_views(PRESET, [[0.01, 0, 0], [0, 0.01, 0], [-0.01, 0, 0.001]], count=4, plan="False"),
+    lambda: carmkin.views.optimal_view_map(PRESET, _tree()[0], [0.0], [0.0], plan="False"),
+], ids=["plane_views", "optimal_view_map"])
+def test_issue_41_a_truthy_string_as_plan_is_refused(call):
+    """Issue 41 (fuzz, LOW): plane_views(plan="False") planned (a non-empty string reads as True)."""
+    with pytest.raises(carmkin.errors.ViewError, match="plan must be True or False"):
+        call()

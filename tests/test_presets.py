@@ -442,3 +442,36 @@ def test_a_motorized_joint_is_not_described_as_moved_by_hand():
         for kind in ("speed", "acceleration"):
             note = provenance[f"motion.{joint}_{kind}_{unit}_s{'2' if kind == 'acceleration' else ''}"].note
             assert "by hand" not in note, (joint, kind, note)
+
+
+def test_robotic_carms_source_distances_come_from_one_device():
+    """Issue 41: robotic-carm paired Siemens' 785 mm source–isocentre distance with Philips' 1195 mm
+    source–detector distance. Both now come from the one AXIOM-Artis dose report, as angio-floor's do."""
+    robot, floor = carmkin.load_preset("robotic-carm"), carmkin.load_preset("angio-floor")
+    assert (robot.carm.orbital_offset, robot.carm.source_to_detector) == (0.785, 1.198)
+    assert (robot.carm.orbital_offset, robot.carm.source_to_detector) == (
+        floor.carm.orbital_offset, floor.carm.source_to_detector)
+    notes = [preset_provenance("robotic-carm")[f"carm.{key}"].note for key in ("orbital_offset_mm", "source_to_detector_mm")]
+    assert all("pyskindose RDSR siemens_axiom_artis.dcm" in note for note in notes), notes
+
+
+@pytest.mark.parametrize("name", ["angio-floor", "angio-ceiling", "angio-lateral"])
+def test_every_free_joint_of_a_stand_turns_about_the_vertical_or_through_the_isocentre(name):
+    """Issue 41: angio-lateral kept a ±100° wigwag about a horizontal axis 1.8 m above the isocentre, which no
+    ceiling stand has. Read from Pinocchio's model (not the DH table) at zero joints: each free revolute joint
+    of the stand turns about the vertical (Y0) or about an axis through the isocentre (the table origin)."""
+    import pinocchio as pin
+
+    system = carmkin.load_preset(name)
+    model = system.pinocchio()[0]
+    data = model.createData()
+    pin.forwardKinematics(model, data, pin.neutral(model))
+    for joint in ("wigwag", "angular", "orbital"):
+        i = system.joint_names.index(joint)
+        if system.lower[i] == system.upper[i]:
+            continue
+        placement = data.oMi[model.getJointId(joint)]
+        axis, point = placement.rotation[:, 2], placement.translation
+        vertical = abs(abs(axis[1]) - 1.0) < 1e-9
+        through_isocentre = np.linalg.norm(np.cross(axis, -point)) < 1e-6   # distance of the origin from the axis
+        assert vertical or through_isocentre, f"{name}: {joint} about {axis.round(3)} through {point.round(3)} m"

@@ -16,7 +16,11 @@
 
 Every experiment prints its verdict rows (over --repeats numpy seeds, each the seed's size;
 carmkin.reproduce.verdict: a t-test of the seed's number against the repeats at α = 0.05, or Table
-3.2's error against the seed's stated 1 %).
+3.2's error against the seed's stated 1 %). Under the fitted model the verdicts are judged **across the
+fit's 95 % region** (carmkin.reproduce.fit.FIT_REGION, three points): a row keeps its verdict only where
+every point gives it, else "undetermined", and the tally says so (three times the time of one point;
+--best-fit-only judges at the best fit alone). A model given by --corner-noise-px / --operator-scale is
+not the fit: its verdicts are judged at that one point, and the tally says that too.
 
 Every experiment runs under the fitted model (``--corner-noise-px`` and ``--operator-scale`` override its
 two free parameters). Lengths print in mm, angles in degrees, image errors in px. ``--json FILE`` writes
@@ -63,6 +67,9 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--rotation", choices=("axes", "angle"), default="axes",
                         help="fit: the seed's rotational error read as the mean |XYZ Euler angle| (axes, default) "
                         "or as the angle of the relative rotation")
+    parser.add_argument("--best-fit-only", action="store_true",
+                        help="verdicts: judge at the best fit alone, not across the fit's 95 %% region (a third of the "
+                        "time; the verdicts then ignore the fit's uncertainty)")
     add_json_argument(parser, "the numbers")
     add_png_argument(parser, "4.6.2: the per-joint sensitivity and image share; fit: the chi2 map", old_names=("--plot",))
 
@@ -74,6 +81,25 @@ def _model(args):
     noise = BEST_FIT[0] if args.corner_noise_px is None else args.corner_noise_px
     scale = BEST_FIT[1] if args.operator_scale is None else args.operator_scale
     return ErrorModel(corner_noise_px=noise).with_operator_scale(scale)
+
+
+def _judged_at(args):
+    """The models the verdicts are judged under and the words the tally states it in: the fit's 95 % region
+    (:func:`carmkin.reproduce.verdict.region_models`) under the fitted model, else the one model given."""
+    from carmkin.reproduce import fit, verdict
+    from carmkin.reproduce.error_model import ErrorModel
+
+    if args.corner_noise_px is None and args.operator_scale is None and not args.best_fit_only:
+        points = ", ".join(f"({c:g} px, {s:g})" for c, s in fit.FIT_REGION)
+        return (verdict.region_models(ErrorModel()), fit.FIT_REGION,
+                f"judged across the fit's 95 % region ({len(fit.FIT_REGION)} points: {points}; a verdict holds only "
+                "where every point gives it, else undetermined)")
+    model = _model(args)
+    why = "--best-fit-only" if args.best_fit_only and args.corner_noise_px is None and args.operator_scale is None \
+        else "a model given by --corner-noise-px / --operator-scale"
+    return ([model], ((model.corner_noise_px, model.operator_scale),),
+            f"judged at one point ({model.corner_noise_px:g} px, {model.operator_scale:g}: {why}), not across the "
+            "fit's 95 % region")
 
 
 def _grid(text, option: str, default) -> tuple:
@@ -93,21 +119,29 @@ def run(args: argparse.Namespace) -> int:
     from carmkin.reproduce import chapter3, error_model, fit, joints, repositioning, stitching, verdict
 
     system, model, out = system_from_args(args), _model(args), {}
+    models, points, judged = _judged_at(args)
     corner_grid = _grid(args.corner_noise_grid_px, "--corner-noise-grid-px", fit.CORNER_NOISE_GRID)
     operator_grid = _grid(args.operator_scale_grid, "--operator-scale-grid", fit.OPERATOR_SCALE_GRID)
     # done/total on a terminal: the tables, then (all) each experiment's verdict rows
-    stages = {"all": 5 + len(verdict.EXPERIMENTS), "model": 1, "fit": 1}.get(args.table, 2)
+    stages = {"all": 5 + len(models) * len(verdict.EXPERIMENTS), "model": 1, "fit": 1}.get(args.table, 1 + len(models))
     bar = tqdm(total=stages, unit="table", desc=f"reproduce {args.table}", leave=False, file=sys.stderr)
 
     def verdict_of(*names, **options):
-        """The verdict rows of ``names`` over --repeats, printed; kept for --json."""
-        rows = []
-        for name in names:
-            rows += verdict.EXPERIMENTS[name](system, model, args.repeats, **options)
-            bar.update(1)
-        print(verdict.format_verdict(rows))
+        """The verdict rows of ``names`` over --repeats at every model of ``models`` (combined by
+        :func:`carmkin.reproduce.verdict.across`), printed with the tally saying where they were judged; kept
+        for --json."""
+        by_point = []
+        for point in models:
+            rows = []
+            for name in names:
+                rows += verdict.EXPERIMENTS[name](system, point, args.repeats, **options)
+                bar.update(1)
+            by_point.append(rows)
+        rows = verdict.across(by_point)
+        print(verdict.format_verdict(rows, judged))
         out.setdefault("verdict", []).extend(r.__dict__ for r in rows)
         out["counts"] = verdict.counts([verdict.Row(**r) for r in out["verdict"]])
+        out["judged_at"] = {"points": [list(map(float, p)) for p in points], "rule": judged}
         return rows
 
     if args.table in ("model", "all"):

@@ -390,6 +390,8 @@ def _optimal_json(system, m) -> dict:
     if m.plan is not None and m.plan.success:
         plan = {"q": common.joints_json(system, m.plan.q), "clearance_mm": m.plan.clearance * MM,
                 "distance_mm": m.plan.distance * MM}
+        if m.plan_metrics is not None:  # the plan's own metrics, where it stands (the cells are nominal views)
+            plan.update({k: m.plan_metrics[k] for k in ("foreshortening", "worst_foreshortening", "overlap")})
     return {"target_mm": list(m.target * MM), "weights": list(m.weights), "optimal": cell(m.optimal),
             "best_reachable": cell(m.best_reachable), "optimum_reachable": m.optimum_reachable,
             "loss": m.loss, "plan": plan, "reachable_cells": int(m.reachable.sum()), "cells": int(m.reachable.size)}

@@ -123,8 +123,10 @@ def _pixels(value, name: str) -> int:
 
 
 def _size(size) -> tuple[int, int]:
-    if isinstance(size, (str, bytes)) or not hasattr(size, "__len__") or len(size) != 2:
-        raise SimulatorConventionError(f"size must be (columns, rows) in pixels, got {size!r}")
+    from carmkin.validation import sequence_length
+
+    if sequence_length(size) != 2:
+        raise SimulatorConventionError(f"size must be (columns, rows) in pixels, got {size!r:.80}")
     return _pixels(size[0], "size[0] (columns)"), _pixels(size[1], "size[1] (rows)")
 
 

@@ -13,6 +13,7 @@ import numpy as np
 
 from carmkin.errors import InvalidParameterError, NearSingularSetupError
 from carmkin.transforms import check_rigid_transform
+from carmkin.validation import sequence_length
 
 from .bounds import (
     MAX_ANGLE,
@@ -126,8 +127,9 @@ class CArmGeometry:
                 raise InvalidParameterError(f"{owner}.{name} must be a JointRange, got {getattr(self, name)!r}")
             check_joint_limits(getattr(self, name), prismatic, owner)
         if self.principal_point is not None:
-            if isinstance(self.principal_point, (str, bytes)) or len(self.principal_point) != 2:
-                raise InvalidParameterError(f"{owner}.principal_point must be (u, v) in px, got {self.principal_point!r}")
+            if sequence_length(self.principal_point) != 2:
+                raise InvalidParameterError(f"{owner}.principal_point must be (u, v) in px, got "
+                                            f"{self.principal_point!r:.80}")
             u, v = (check_real(f"{owner}.principal_point", x, -MAX_PIXELS, MAX_PIXELS, "px")
                     for x in self.principal_point)
             object.__setattr__(self, "principal_point", (u, v))
@@ -254,7 +256,8 @@ class TableGeometry:
         check_joint_limits(self.translation, True, "TableGeometry")
         object.__setattr__(self, "top_size", _check_lengths("TableGeometry.top_size", self.top_size, positive=True))
         object.__setattr__(self, "top_center", _check_lengths("TableGeometry.top_center", self.top_center))
-        if isinstance(self.joints, (str, bytes)) or not hasattr(self.joints, "__iter__"):
+        if (isinstance(self.joints, (str, bytes, dict)) or not hasattr(self.joints, "__iter__")
+                or np.ndim(self.joints) == 0):  # a 0-d array has __iter__ but cannot be iterated
             raise InvalidParameterError(f"TableGeometry.joints must be a tuple of TableJoint, got {self.joints!r}")
         object.__setattr__(self, "joints", tuple(self.joints))
         names = [getattr(j, "name", None) for j in self.joints]
@@ -321,6 +324,6 @@ class BodyGeometry:
 
 def _check_lengths(what: str, values, positive: bool = False) -> tuple[float, float, float]:
     """Three lengths (m), each checked by :func:`~carmkin.model.bounds.check_length`."""
-    if isinstance(values, (str, bytes)) or not hasattr(values, "__len__") or len(values) != 3:
-        raise InvalidParameterError(f"{what} needs three values (m), got {values!r}")
+    if sequence_length(values) != 3:
+        raise InvalidParameterError(f"{what} needs three values (m), got {values!r:.80}")
     return tuple(check_length(what, v, positive) for v in values)

@@ -122,10 +122,10 @@ def preset_provenance(name_or_path: str | Path) -> dict[str, Provenance]:
     """
     _check_name(name_or_path)
     label = _read_label(str(name_or_path))
-    if _biplane.is_biplane(_toml(Path(label).read_text(), label)):
+    if _biplane.is_biplane(_toml(_text(label), label)):
         return _biplane_provenance(label)
     _, origin, _ = _read(name_or_path)
-    comments = {file: _comments(Path(file).read_text()) for file in set(origin.values())}
+    comments = {file: _comments(_text(file)) for file in set(origin.values())}
     provenance = {}
     for key, file in origin.items():
         provenance[key] = _provenance(file, key, comments[file].get(key, ""))
@@ -145,7 +145,7 @@ def _biplane_provenance(label: str) -> dict[str, Provenance]:
     """A biplane preset's own keys, then each plane's keys prefixed ``frontal.`` / ``lateral.``."""
     data, planes = _biplane_file(label)
     own = _origin(data, label)
-    comments = _comments(Path(label).read_text())
+    comments = _comments(_text(label))
     out = {key: _provenance(label, key, comments.get(key, "")) for key in own}
     placed = "setup" in data.get("lateral", {})  # [lateral.setup] replaces the lateral preset's [setup]
     for plane, value in planes.items():
@@ -176,7 +176,7 @@ def _read(name_or_path: str | Path) -> tuple[dict, dict[str, str], str]:
         label = str(path)
     else:
         label = _builtin_file(str(name_or_path), "preset")
-    text = Path(label).read_text()
+    text = _text(label)
     if _biplane.is_biplane(_toml(text, label)):  # a biplane preset reads as its frontal plane
         data, plane = _biplane_file(label)
         merged, origin, _ = _read(plane["frontal"])
@@ -184,23 +184,33 @@ def _read(name_or_path: str | Path) -> tuple[dict, dict[str, str], str]:
     return (*_resolve_base(*_parse(text, label), label), label)
 
 
+def _text(label: str) -> str:
+    """A preset file's text (TOML is UTF-8); a file that is not UTF-8 is a :class:`PresetError` naming it."""
+    try:
+        return Path(label).read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise PresetError(f"{label}: not a UTF-8 text file (TOML is UTF-8): byte {exc.start}: {exc.reason}") from None
+
+
 def _toml(text: str, label: str) -> dict:
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:  # the message says "(at line L, column C)"
         raise PresetError(f"{label}: malformed TOML: {exc}") from None
+    except ValueError as exc:  # an integer of more digits than Python converts (issue 41: 5000 digits)
+        raise PresetError(f"{label}: a value TOML cannot hold as a number: {str(exc).split(';')[0]}") from None
 
 
 def _biplane_file(label: str) -> tuple[dict, dict[str, str]]:
     """A biplane preset's checked values and its planes' preset names or paths (relative paths resolved
     against the biplane file's folder)."""
-    data = _toml(Path(label).read_text(), label)
+    data = _toml(_text(label), label)
     _biplane.check(data, label)
     planes = {}
     for plane, value in data[_biplane.SECTION].items():
         path = Path(value)
         planes[plane] = str(path if path.is_absolute() or path.suffix != ".toml" else Path(label).parent / path)
-        if _biplane.is_biplane(_toml(Path(_read_label(planes[plane])).read_text(), planes[plane])):
+        if _biplane.is_biplane(_toml(_text(_read_label(planes[plane])), planes[plane])):
             raise PresetError(f"{label}: [biplane] {plane} = {value!r} is itself a biplane preset; name a one-plane "
                               "preset")
     return data, planes
@@ -221,7 +231,7 @@ def biplane_planes(name_or_path: str | Path) -> dict[str, str] | None:
     refuse a biplane preset rather than drop its lateral plane (the command line does)."""
     _check_name(name_or_path)
     label = _read_label(str(name_or_path))
-    if not _biplane.is_biplane(_toml(Path(label).read_text(), label)):
+    if not _biplane.is_biplane(_toml(_text(label), label)):
         return None
     return _biplane_file(label)[1]
 
@@ -234,7 +244,7 @@ def read_biplane(name_or_path: str | Path):
     clearance at rest is checked by :func:`carmkin.biplane.load_biplane`, which calls this."""
     _check_name(name_or_path)
     label = _read_label(str(name_or_path))
-    if not _biplane.is_biplane(_toml(Path(label).read_text(), label)):
+    if not _biplane.is_biplane(_toml(_text(label), label)):
         raise PresetError(f"{label}: not a biplane preset (it has no [biplane] section); carmkin.load_preset reads it")
     data, planes = _biplane_file(label)
     frontal = load_preset(planes["frontal"])
@@ -304,7 +314,7 @@ def _resolve_base(data: dict, origin: dict[str, str], label: str, depth: int = 0
     if depth >= MAX_BASE_DEPTH:
         raise PresetError(f"{label}: 'base' chain longer than {MAX_BASE_DEPTH} (a cycle?)")
     base_label = _builtin_file(data["base"], "base preset")
-    base, base_origin = _resolve_base(*_parse(Path(base_label).read_text(), base_label), base_label, depth + 1)
+    base, base_origin = _resolve_base(*_parse(_text(base_label), base_label), base_label, depth + 1)
     replaces_setup = "setup" in data or any(key in data.get("mount", {}) for key in MOUNT_CARM_BASE)
     dropped = ("name", "description", "setup") if replaces_setup else ("name", "description")
     base = {k: v for k, v in base.items() if k not in dropped}

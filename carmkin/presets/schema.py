@@ -175,6 +175,9 @@ def _check_section(data: dict, section: str, file: str, sections: dict[str, dict
     subsections = {s.rpartition(".")[2] for s in sections if s and s.rpartition(".")[0] == section}
     where = f"[{section}]" if section else "the top level"
     for key, value in data.items():
+        if not isinstance(key, str):  # a dict built by hand (TOML keys are strings): issue 41, difflib's TypeError
+            raise PresetError(f"{file}: every key in {where} must be a string, got {key!r:.40} "
+                              f"({type(key).__name__})")
         if "*" in subsections:  # sub-tables named by the user (the mount's joints), each checked by the "*" rules
             if not isinstance(value, dict):
                 raise PresetError(f"{file}: {key!r} in [{section}] must be a table (a [{_join(section, key)}] section), "

@@ -73,12 +73,33 @@ class ExperimentConfig:
         "orbital": (-math.radians(20), math.radians(20)), "table_translation": (-0.2, 0.2)})
 
     def __post_init__(self) -> None:
-        if not (np.isfinite(self.table_shift) and self.table_shift >= 0):
-            raise SimulationError(f"table_shift must be finite and >= 0 (m), got {self.table_shift}")
-        if self.calibration not in CALIBRATIONS:
-            raise SimulationError(f"calibration must be one of {CALIBRATIONS}, got {self.calibration!r}")
-        if int(self.max_steps) < 1:
-            raise SimulationError(f"max_steps must be >= 1, got {self.max_steps}")
+        from carmkin.validation import instance, integer, real_scalar
+
+        # each field checked and named (issue 41: junk was accepted and failed later, or escaped untyped)
+        real_scalar(self.corner_noise_px, "ExperimentConfig.corner_noise_px", error=SimulationError, low=0.0,
+                    high=100.0, unit="px")
+        instance(self.operator, OperatorModel, "ExperimentConfig.operator", error=SimulationError)
+        instance(self.guidance, GuidanceOptions, "ExperimentConfig.guidance", error=SimulationError)
+        real_scalar(self.mount_error, "ExperimentConfig.mount_error", error=SimulationError, low=0.0, high=math.pi,
+                    unit="rad")
+        integer(self.calibration_positions, "ExperimentConfig.calibration_positions", low=3, high=10_000,
+                error=SimulationError)
+        real_scalar(self.table_shift, "ExperimentConfig.table_shift", error=SimulationError, low=0.0, high=10.0,
+                    unit="m")
+        if not isinstance(self.calibration, str) or self.calibration not in CALIBRATIONS:
+            raise SimulationError(f"calibration must be one of {CALIBRATIONS}, got {self.calibration!r:.60}")
+        integer(self.max_steps, "ExperimentConfig.max_steps", low=1, high=1_000_000, error=SimulationError)
+        if not isinstance(self.reference_ranges, dict) or not all(isinstance(k, str) for k in self.reference_ranges):
+            raise SimulationError("ExperimentConfig.reference_ranges must be a dict of joint name -> (low, high), got "
+                                  f"{self.reference_ranges!r:.60}")
+        for name, bounds in self.reference_ranges.items():
+            from carmkin.validation import real_array
+
+            low, high = real_array(bounds, f"ExperimentConfig.reference_ranges[{name!r}]", (2,),
+                                   error=SimulationError, unit="m or rad")
+            if low > high:
+                raise SimulationError(f"ExperimentConfig.reference_ranges[{name!r}] must be (low, high) with low <= "
+                                      f"high, got ({low:g}, {high:g})")
 
 
 @dataclass

@@ -130,8 +130,32 @@ def phantom_frame(room, T_first) -> np.ndarray:
     return T
 
 
+#: Largest phantom side (m) and most markers of :func:`phantom_points` (a table-top phantom; metres read as
+#: millimetres would ask for millions).
+MAX_PHANTOM_SIZE = 10.0
+MAX_PHANTOM_MARKERS = 1_000_000
+
+
 def phantom_points(length: float = LENGTH, spacing: float = SPACING, rows: int = ROWS, width: float = WIDTH) -> np.ndarray:
-    """Marker centres (N, 3) in the phantom frame (m): columns every ``spacing`` along x, ``rows`` across."""
+    """Marker centres (N, 3) in the phantom frame (m): columns every ``spacing`` along x, ``rows`` across.
+    ``length`` > 0, ``spacing`` in (0, ``length``], ``width`` ≥ 0 (m), ``rows`` ≥ 1 (≥ 2 when ``width`` > 0);
+    else :class:`SimulationError` naming the argument (issue 41: zero or negative sizes gave an empty or
+    degenerate phantom, ``spacing=0`` a ZeroDivisionError)."""
+    from carmkin.validation import integer, real_scalar
+
+    length = real_scalar(length, "length", error=SimulationError, low=0.0, high=MAX_PHANTOM_SIZE, unit="m")
+    spacing = real_scalar(spacing, "spacing", error=SimulationError, low=0.0, high=MAX_PHANTOM_SIZE, unit="m")
+    width = real_scalar(width, "width", error=SimulationError, low=0.0, high=MAX_PHANTOM_SIZE, unit="m")
+    rows = integer(rows, "rows", low=1, high=MAX_PHANTOM_MARKERS, error=SimulationError)
+    if length <= 0 or spacing <= 0 or spacing > length:
+        raise SimulationError(f"length and spacing must be > 0 with spacing <= length (m), got length {length:g}, "
+                              f"spacing {spacing:g}")
+    if rows * (length / spacing + 1) > MAX_PHANTOM_MARKERS:
+        raise SimulationError(f"spacing {spacing:g} m over length {length:g} m and rows {rows} give more than "
+                              f"{MAX_PHANTOM_MARKERS} markers")
+    if (rows == 1) != (width == 0):
+        raise SimulationError(f"rows and width must agree: one row has width 0, several a width > 0 (m), got rows "
+                              f"{rows}, width {width:g}")
     xs = np.arange(0.0, length + 1e-12, spacing) - length / 2
     ys = np.linspace(-width / 2, width / 2, rows)
     return np.array([(x, y, 0.0) for y in ys for x in xs])

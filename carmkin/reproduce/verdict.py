@@ -393,18 +393,20 @@ def counts(rows: list[Row]) -> dict:
     return {kind: {v: sum(r.kind == kind and r.verdict == v for r in rows) for v in VERDICTS} for kind in KINDS}
 
 
-def format_counts(rows: list[Row]) -> str:
+def format_counts(rows: list[Row], judged: str = "") -> str:
+    """The tally line; ``judged`` (e.g. "judged across the fit's 95 % region ...") is appended after "; "."""
     c = counts(rows)
     total = {k: sum(v.values()) for k, v in c.items()}
     return (f"predicted {total['predicted']} ({c['predicted']['reproduced']} reproduced, "
             f"{c['predicted']['not reproduced']} not reproduced, {c['predicted']['undetermined']} undetermined); "
-            f"fitted {total['fitted']} (in-sample, not evidence); not a test {total['not-a-test']}")
+            f"fitted {total['fitted']} (in-sample, not evidence); not a test {total['not-a-test']}"
+            + (f"; {judged}" if judged else ""))
 
 
-def format_verdict(rows: list[Row]) -> str:
+def format_verdict(rows: list[Row], judged: str = "") -> str:
     lines = [f"{'table':<10}{'quantity':<28}{'seed':>8}{'simulated':>17}  {'kind':<11}{'verdict':<16}criterion"]
     for r in rows:
         sim = f"{r.simulated:8.2f} ± {r.spread:5.2f}" if np.isfinite(r.spread) else f"{r.simulated:8.2f}"
         lines.append(f"{r.experiment:<10}{r.quantity:<28}{r.seed:8.2f}{sim:>17}  {r.kind:<11}{r.verdict:<16}{r.criterion}")
-    lines.append(format_counts(rows))
+    lines.append(format_counts(rows, judged))
     return "\n".join(lines)

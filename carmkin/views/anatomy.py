@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from carmkin.errors import AnatomyPlacementError, CentrelineError, PlaneError
-from carmkin.validation import real_array
+from carmkin.validation import integer, real_array
 
 #: Shortest segment (m) between consecutive centreline points: closer points are a repeated point.
 MIN_SEGMENT = 1e-6
@@ -29,6 +29,10 @@ MIN_LENGTH = 1e-3
 MAX_LENGTH = 1.0
 #: Largest plausible vessel radius (m) (the aortic root is ~15 mm).
 MAX_RADIUS = 0.03
+#: Most vessels and most points per vessel of :func:`synthetic_tree` (a coronary tree has tens of named
+#: segments; 10**30 was accepted and hung).
+MAX_TREE_VESSELS = 1000
+MAX_TREE_POINTS = 100_000
 #: Relative size (second over first singular value of the centred points) below which plane points are
 #: collinear (or coincident).
 COLLINEAR_TOLERANCE = 1e-6
@@ -272,8 +276,12 @@ def synthetic_tree(centre, seed: int = 0, vessels: int = 4, points: int = 40) ->
     """A synthetic coronary tree: ``vessels`` helical segments (each 40–110 mm, ``points`` points) on a
     sphere of :data:`HEART_RADIUS` about ``centre`` (3,) m, table frame — polar and azimuthal angles linear in
     the arc parameter, so each winds around the heart like an epicardial artery. The first is the vessel of
-    interest, the others overlap it in some views. Deterministic in ``seed``."""
+    interest, the others overlap it in some views. Deterministic in ``seed`` (an integer ≥ 0: ``None`` would
+    draw fresh entropy); ``vessels`` 1 … :data:`MAX_TREE_VESSELS`, ``points`` 2 … :data:`MAX_TREE_POINTS`."""
     centre = real_array(centre, "centre", (3,), error=CentrelineError, unit="m")
+    seed = integer(seed, "seed", low=0, error=CentrelineError)
+    vessels = integer(vessels, "vessels", low=1, high=MAX_TREE_VESSELS, error=CentrelineError)
+    points = integer(points, "points", low=2, high=MAX_TREE_POINTS, error=CentrelineError)
     rng = np.random.default_rng(seed)
     t = np.linspace(0.0, 1.0, points)[:, None]
     out = []

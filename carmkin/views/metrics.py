@@ -141,34 +141,46 @@ def _tube_pieces(others, radii, poses, K):
     return (np.vstack(vertices), *(np.concatenate(v) for v in (ia, ib, pa, pb)), np.concatenate(R))
 
 
-def subdivisions(points, poses, K, spacing: float = SAMPLE_SPACING_PX) -> np.ndarray:
+def subdivisions(points, poses, K, spacing: float = SAMPLE_SPACING_PX, per_view: bool = False) -> np.ndarray:
     """Samples per polyline segment (N-1,) so that no projected sample step exceeds ``spacing`` px in any view
-    (at 1 px, consecutive samples fall in the same or 8-adjacent pixels: an 8-connected digital curve)."""
+    (at 1 px, consecutive samples fall in the same or 8-adjacent pixels: an 8-connected digital curve);
+    ``per_view``: each view's own (C, N-1), which depends on that view alone."""
     px = _pixels(_normalised(camera_points(points, poses)), np.asarray(K, dtype=float))
-    longest = np.linalg.norm(np.diff(px, axis=1), axis=2).max(axis=0)
-    return np.maximum(1, np.ceil(longest / spacing)).astype(int)
+    longest = np.linalg.norm(np.diff(px, axis=1), axis=2)
+    return np.maximum(1, np.ceil((longest if per_view else longest.max(axis=0)) / spacing)).astype(int)
 
 
 def overlap(points, others, poses, K, radii=DEFAULT_RADIUS, counts=None) -> np.ndarray:
     """Overlap (C,) of the centreline ``points`` (N, 3) m by the tubes about ``others`` (a sequence of (M, 3)
     polylines, m; ``radii`` one radius (m) for all, or one per polyline: a scalar or (M,) per point) in each
-    view (module docstring). ``counts`` (N-1,): the subdivision of each segment (default
-    :func:`subdivisions` over these views). Vectorised: the centreline's pixels and the tubes' pieces meet
-    through a coarse grid (a sort and a join), so only pixels near a piece are tested."""
+    view (module docstring). ``counts``: the subdivision of each segment, (N-1,) for every view or (C, N-1)
+    (default: each view's own, :func:`subdivisions` with ``per_view``, so that a view's overlap does not depend
+    on the other views of the call — a cell alone and in a full map agree exactly, issue 41). Vectorised: the
+    centreline's pixels and the tubes' pieces meet through a coarse grid (a sort and a join), so only pixels
+    near a piece are tested."""
     K = np.asarray(K, dtype=float)
     points = np.asarray(points, dtype=float)
     poses = np.asarray(poses, dtype=float)
     others = list(others)
-    radii = [radii] * len(others) if np.ndim(radii) == 0 else list(radii)
+    if not isinstance(radii, (list, tuple)):  # one radius for all, or (M,) per point of a single vessel
+        radii = [radii] * len(others) if np.ndim(radii) == 0 else list(radii)
+    # a list: one entry per vessel, each a radius or (M,) per point; lengths may differ (issue 41)
     if counts is None:
-        counts = subdivisions(points, poses, K)
-    seg = np.repeat(np.arange(len(counts)), counts)
-    t = np.concatenate([np.arange(n) / n for n in counts])
-    seg, t = np.append(seg, len(counts) - 1), np.append(t, 1.0)  # the last point
+        counts = subdivisions(points, poses, K, per_view=True)
+    counts = np.broadcast_to(np.asarray(counts, dtype=np.int64), (len(poses), len(points) - 1))
+    most = counts.max(axis=0)                                                   # samples k = 0 … most − 1
+    seg = np.repeat(np.arange(len(most)), most)
+    k = np.concatenate([np.arange(n) for n in most])
     tubes = _tube_pieces(others, radii, poses, K)
-    chunk = max(1, CHUNK_ELEMENTS // len(seg))
+    chunk = max(1, CHUNK_ELEMENTS // (len(seg) + 1))
     starts = range(0, len(poses), chunk)
-    work = lambda lo: _overlap_chunk(points, poses[lo:lo + chunk], K, seg, t, tubes)  # noqa: E731
+
+    def work(lo):
+        n = counts[lo:lo + chunk, seg]                                           # each view's own subdivision
+        t = np.where(k < n, k / n, 1.0)   # past a view's own samples: the segment's end (a repeat, dropped)
+        t = np.concatenate((t, np.ones((len(t), 1))), axis=1)                    # the last point
+        return _overlap_chunk(points, poses[lo:lo + chunk], K, np.append(seg, len(most) - 1), t, tubes)
+
     if len(starts) == 1:
         return work(0)
     from concurrent.futures import ThreadPoolExecutor

@@ -43,7 +43,11 @@ class OptimalViewMap:
     ``reach`` map itself; ``optimal`` (primary_deg, secondary_deg) the best-scoring cell, ``best_reachable``
     the best reachable cell or ``None``; ``loss`` the best reachable cell's score, foreshortening and overlap
     minus the optimum's (``None`` when nothing is reachable); ``plan`` the :class:`ViewPlan` of the best
-    reachable view; ``distance`` the source–target distance (m) of the nominal views; ``target`` (3,) m."""
+    reachable view; ``distance`` the source–target distance (m) of the nominal views; ``target`` (3,) m;
+    ``plan_metrics`` the plan's own ``foreshortening``, ``worst_foreshortening``, ``overlap`` (fractions) and
+    ``distance`` (m, source–target along its beam), at the source pose where the plan stands
+    (``system.fk(plan.q)``: its distance and roll, not the cell's nominal view; ``None`` without a successful
+    plan)."""
 
     primary_deg: np.ndarray
     secondary_deg: np.ndarray
@@ -61,6 +65,7 @@ class OptimalViewMap:
     loss: dict | None
     plan: ViewPlan | None
     distance: float
+    plan_metrics: dict | None = None
 
     @property
     def optimum_reachable(self) -> bool:
@@ -90,6 +95,11 @@ class OptimalViewMap:
                 lines.append(f"the optimal view is unreachable; the best reachable view loses {self.loss['score']:.4f} of "
                              f"score ({100 * self.loss['foreshortening']:+.2f} % foreshortening, "
                              f"{100 * self.loss['overlap']:+.2f} % overlap)")
+        if self.plan_metrics is not None:
+            m = self.plan_metrics
+            lines.append(f"the plan stands {1e3 * m['distance']:.0f} mm from the target: foreshortening "
+                         f"{100 * m['foreshortening']:.2f} % (worst segment {100 * m['worst_foreshortening']:.2f} %), "
+                         f"overlap {100 * m['overlap']:.2f} % there")
         return lines
 
 
@@ -114,7 +124,7 @@ def _radius(value, name="radius") -> float:
 def _others(others, radius) -> tuple[list[Centreline], list]:
     if isinstance(others, np.ndarray) and others.ndim == 3:  # (K, M, 3): K vessels of M points each
         others = list(others)
-    if isinstance(others, (np.ndarray, str, bytes)) or isinstance(others, Centreline):
+    if isinstance(others, (np.ndarray, str, bytes)) or isinstance(others, Centreline) or not hasattr(others, "__iter__"):
         raise AnatomyError("others must be a sequence of centrelines ((M, 3) arrays in m or Centreline), got "
                            f"{type(others).__name__} {getattr(others, 'shape', '')}".rstrip())
     lines = [as_centreline(o, f"others[{k}]") for k, o in enumerate(others)]
@@ -137,8 +147,11 @@ def optimal_view_map(system, centreline, primary_deg=np.arange(-90, 91), seconda
     vessels, (M, 3) m each, drawn as tubes of their radii or ``radius`` (m, default
     :data:`carmkin.views.metrics.DEFAULT_RADIUS`). ``target`` (3,) m: default the centreline's arc midpoint.
     ``plan``: plan the best reachable view (:func:`plan_view`, no ``q_current``)."""
+    from carmkin.validation import flag
+
     line = as_centreline(centreline, "centreline")
     radius = _radius(radius)
+    plan = flag(plan, "plan", error=ViewError)
     lines, radii = _others(others, radius)
     weights = _weights(weights)
     target = line.midpoint if target is None else _point(target, "target")
@@ -175,8 +188,26 @@ def optimal_view_map(system, centreline, primary_deg=np.arange(-90, 91), seconda
             the_plan = plan_view(system, view, patient, margin=margin, nearest=False, table_samples=table_samples,
                                  qp=False)
     clearance = np.where(reach.reachable, reach.clearance, np.nan)
+    plan_metrics = None
+    if the_plan is not None and the_plan.success:
+        plan_metrics = _metrics_at(system, system.fk(the_plan.q), line, lines, radii, target)
     return OptimalViewMap(p, s, target, F, W, O, score, weights, reach.reachable, clearance, reach, optimal, best,
-                          loss, the_plan, distance)
+                          loss, the_plan, distance, plan_metrics)
+
+
+def _metrics_at(system, pose, line, lines, radii, target) -> dict:
+    """Foreshortening, worst foreshortening, overlap and the source–target distance along the beam of the view
+    at ``pose`` (4, 4), the source pose a plan stands at (issue 41: the map's cells are nominal views)."""
+    pose = np.asarray(pose, dtype=float)[None]
+    distance = float(pose[0, :3, 2] @ (np.asarray(target, dtype=float) - pose[0, :3, 3]))
+    F, W = metrics.foreshortening(line.points, pose, distance)
+    O = np.zeros(1)
+    if lines:
+        from carmkin.imaging import intrinsics
+
+        O = metrics.overlap(line.points, [c.points for c in lines], pose, intrinsics(system)[0], radii)
+    return {"foreshortening": float(F[0]), "worst_foreshortening": float(W[0]), "overlap": float(O[0]),
+            "distance": distance}
 
 
 @dataclass(frozen=True)
@@ -206,10 +237,11 @@ def plane_views(system, plane, patient=None, *, count: int = FAMILY_SIZE, target
     """The ``count`` beams in ``plane`` (a :class:`Plane` or ≥ 3 points (K, 3) m, table frame), evenly spaced
     over the full turn, through ``target`` (default the plane's centre): which are reachable with ``patient``
     (the search of :func:`reach_map`), and the reachable one that best separates the plane's points."""
-    from carmkin.validation import integer
+    from carmkin.validation import flag, integer
 
     plane = plane if isinstance(plane, Plane) else plane_from_points(plane)
     count = integer(count, "count", low=3, high=36000, error=ViewError)
+    plan = flag(plan, "plan", error=ViewError)  # a string "False" would read as True (issue 41)
     margin = real_scalar(margin, "margin", error=ViewError, low=0.0, high=1.0, unit="m")
     target = plane.centre if target is None else _point(target, "target")
     position = _position(patient, position)

@@ -3,7 +3,9 @@
 A segment a–b is seen at its full length by every beam perpendicular to it: a one-parameter family of
 directions (:meth:`View.perpendicular_to`). :func:`plan_perpendicular` searches the whole family at once,
 as a map does its cells (:func:`carmkin.views.search.solve_cells`), and plans the reachable member with the
-most clearance — or, with ``prefer``, the one nearest a preferred beam direction. Lengths in m, angles in rad.
+most clearance — or, with ``prefer``, the one nearest a preferred beam direction. When the closed form reaches
+no member, the QP tries :data:`QP_TRIES` members spread over the family (as :func:`plan_view` falls back to
+it). Lengths in m, angles in rad.
 """
 
 from __future__ import annotations
@@ -19,6 +21,10 @@ from .view import View, _unit
 
 #: Directions of the family searched by default (1° apart).
 FAMILY_SIZE = 360
+#: Members of the family the QP tries, evenly spread, when the closed-form search reaches none (a system whose
+#: closed form lacks a joint the QP moves: angio-lateral's locked wigwag leaves a vertical offset to the
+#: table's height, which only the QP moves). Bounded: a family unreachable everywhere costs this many QPs.
+QP_TRIES = 12
 
 
 def plan_perpendicular(system, a, b, patient=None, q_current=None, *, prefer=None, count: int = FAMILY_SIZE,
@@ -51,9 +57,25 @@ def plan_perpendicular(system, a, b, patient=None, q_current=None, *, prefer=Non
     chosen = family[int(reachable[0] if len(reachable) else order[0])]
     plan = plan_view(system, chosen, patient, q_current, margin=margin, nearest=False, table_samples=table_samples,
                      qp=bool(system.mount.joints), motion_plan=False)
-    if not len(reachable):
+    if not len(reachable) and not system.mount.joints:
+        plan = _qp_member(system, family, patient, q_current, margin, table_samples, preferred, directions) or plan
+    if not plan.success:
         from dataclasses import replace
 
         plan = replace(plan, reason=f"no view perpendicular to the segment is reachable ({count} directions "
-                                    f"searched); this one: {plan.reason}")
+                                    f"searched, {min(QP_TRIES, count)} by the QP); this one: {plan.reason}")
     return plan
+
+
+def _qp_member(system, family, patient, q_current, margin, table_samples, preferred, directions):
+    """The plan of a member the QP reaches, among :data:`QP_TRIES` spread over the family (nearest ``preferred``
+    first when given, else the most clearance), or None."""
+    tries = np.unique(np.linspace(0, len(family), min(QP_TRIES, len(family)), endpoint=False).astype(int))
+    if preferred is not None:
+        tries = tries[np.argsort(-(directions[tries] @ preferred), kind="stable")]
+    plans = [plan_view(system, family[int(k)], patient, q_current, margin=margin, nearest=False,
+                       table_samples=table_samples, qp=True, motion_plan=False) for k in tries]
+    good = [p for p in plans if p.success]
+    if not good:
+        return None
+    return good[0] if preferred is not None else max(good, key=lambda p: p.clearance)

@@ -23,7 +23,7 @@ from carmkin.errors import CarmkinError, ViewError
 from carmkin.imaging.projection import patient_pose
 from carmkin.interop import dicom
 from carmkin.transforms import check_rigid_transform
-from carmkin.validation import real_array, real_scalar, rigid_transform, target_point
+from carmkin.validation import flag, real_array, real_scalar, rigid_transform, target_point
 
 #: Below this norm (m) a direction or segment is refused as undefined.
 DIRECTION_TOLERANCE = 1e-9
@@ -106,6 +106,7 @@ class View:
         the source, at that distance, with its roll (``roll=False``: free)."""
         T = rigid_transform(T_source, "T_source", error=ViewError)
         d = real_scalar(distance, "distance", error=ViewError, low=DIRECTION_TOLERANCE, high=10.0, unit="m")
+        roll = flag(roll, "roll", error=ViewError)  # a string "False" would read as True
         return cls(tuple(T[:3, 3] + d * T[:3, 2]), tuple(T[:3, 2]), d, name, tuple(T[:3, 0]) if roll else None)
 
     @classmethod

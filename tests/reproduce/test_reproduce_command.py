@@ -63,3 +63,46 @@ def test_bad_input_exits_2_with_a_message(argv, message, capsys):
         code = exc.code
     assert code == 2
     assert message in capsys.readouterr().err
+
+
+def _region_dependent(calls):
+    """A fake experiment: row "a" reproduced everywhere, row "b" not reproduced at 1 px corner noise only."""
+    from carmkin.reproduce import verdict
+
+    def experiment(system, model, repeats, **options):
+        calls.append((model.corner_noise_px, round(model.operator_scale, 12)))
+        b = "not reproduced" if model.corner_noise_px == 1.0 else "reproduced"
+        return [verdict.Row("x", "a", 1.0, 1.0, 0.1, 0.0, 1.0, "reproduced", "predicted", "fake"),
+                verdict.Row("x", "b", 1.0, 1.0, 0.1, 0.0, 1.0, b, "predicted", "fake")]
+    return experiment
+
+
+@pytest.mark.parametrize("extra, expected, rule", [
+    ([], "predicted 2 (1 reproduced, 0 not reproduced, 1 undetermined)", "judged across the fit's 95 % region (3 points"),
+    (["--best-fit-only"], "predicted 2 (2 reproduced, 0 not reproduced, 0 undetermined)",
+     "judged at one point (0.5 px, 0.2: --best-fit-only), not across the fit's 95 % region"),
+    (["--corner-noise-px", "1"], "predicted 2 (1 reproduced, 1 not reproduced, 0 undetermined)",
+     "judged at one point (1 px, 0.2: a model given by --corner-noise-px / --operator-scale)"),
+])
+def test_the_printed_tally_is_judged_across_the_fits_region(extra, expected, rule, capsys, tmp_path, monkeypatch):
+    """Issue 41: a verdict holds only where it holds at every point of the fit's 95 % region, in the CLI's
+    rows, tally and JSON; a model the user gives is judged at that point and the tally says so."""
+    from carmkin.reproduce import fit, verdict
+
+    calls = []
+    monkeypatch.setitem(verdict.EXPERIMENTS, "3.2", _region_dependent(calls))
+    out_json = tmp_path / "v.json"
+    assert main(["reproduce", "3.2", "--repeats", "2", "--json", str(out_json), *extra]) == 0
+    out = capsys.readouterr().out
+    tally = [line for line in out.splitlines() if line.startswith("predicted ")]
+    assert len(tally) == 1 and tally[0].startswith(expected)
+    assert rule in tally[0]
+    data = json.loads(out_json.read_text())
+    assert data["judged_at"]["rule"] in tally[0]
+    if not extra:
+        assert calls == [tuple(p) for p in fit.FIT_REGION]
+        assert data["judged_at"]["points"] == [list(p) for p in fit.FIT_REGION]
+        assert [r["verdict"] for r in data["verdict"]] == ["reproduced", "undetermined"]
+        assert "across the fit's 95 % region: reproduced, reproduced, not reproduced" in data["verdict"][1]["criterion"]
+    else:
+        assert len(calls) == 1 and data["judged_at"]["points"] == [list(calls[0])]

@@ -73,21 +73,46 @@ def test_best_reachable_view_of_a_random_tree(seed):
         assert abs(f - m.foreshortening[a, b]) < 1e-9 and abs(w - m.worst_foreshortening[a, b]) < 1e-9
         rescored[(a, b)] = 0.5 * f + 0.5 * m.overlap[a, b]
     assert min(rescored.values()) >= rescored[(i, j)] - 1e-12
-    # overlap spot checks against the oracle (the best cell and two others), with the map's subdivision
-    P, S = np.meshgrid(PRIMARY, SECONDARY, indexing="ij")
-    from carmkin.views.metrics import xa_poses
-
-    counts = subdivisions(tree[0].points, xa_poses(P.ravel(), S.ravel(), m.target, distance), K)
+    # overlap spot checks against the oracle (the best cell and two others), each with its view's own subdivision
     rng = np.random.default_rng(seed)
     for a, b in [(i, j), *zip(rng.integers(len(PRIMARY), size=2), rng.integers(len(SECONDARY), size=2))]:
         pose = pose_from_xa_angles(PRIMARY[a], SECONDARY[b], m.target, distance, "HFS")
+        counts = subdivisions(tree[0].points, pose[None], K)
         want = oracle_overlap(points, [o.tolist() for o in others], 1.5e-3, pose.tolist(), counts.tolist())
         assert abs(want - m.overlap[a, b]) < 1e-9
+    # the plan's own metrics, at the source pose where it stands (its distance along the beam, its roll)
+    T = SYSTEM.fk(m.plan.q)
+    there = float(T[:3, 2] @ (m.target - T[:3, 3]))
+    f, w = oracle_foreshortening(points, T.tolist(), there)
+    counts = subdivisions(tree[0].points, T[None], K)
+    want = oracle_overlap(points, [o.tolist() for o in others], 1.5e-3, T.tolist(), counts.tolist())
+    got = m.plan_metrics
+    assert abs(got["distance"] - there) < 1e-12 and abs(got["foreshortening"] - f) < 1e-9
+    assert abs(got["worst_foreshortening"] - w) < 1e-9 and abs(got["overlap"] - want) < 1e-9
     o = m.cell(m.optimal)
     assert m.score[o] == m.score.min()
     assert m.loss["score"] >= 0 and m.loss["score"] == pytest.approx(m.score[i, j] - m.score[o], abs=0)
     text = "\n".join(m.summary())
     assert ("the optimal view is unreachable" in text) == (not m.reachable[o])
+
+
+#: Overlap of one view alone and of the same view in a whole map (fraction): the same pixels, so equal exactly.
+CELL_AGREEMENT = 0.0
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_cells_overlap_does_not_depend_on_the_maps_grid(seed):
+    """Issue 41: the centreline's subdivision was taken over every view of the map, so a cell's overlap
+    depended on the grid (0.0789 alone, 0.0733 in a full map). Each view now samples by its own projection."""
+    tree = synthetic_tree(HEART, seed)
+    others = [c.points for c in tree[1:]]
+    full = optimal_view_map(SYSTEM, tree[0], PRIMARY, SECONDARY, None, others, plan=False)
+    rng = np.random.default_rng(seed)
+    for a, b in zip(rng.integers(len(PRIMARY), size=4), rng.integers(len(SECONDARY), size=4)):
+        alone = optimal_view_map(SYSTEM, tree[0], [PRIMARY[a]], [SECONDARY[b]], None, others, plan=False)
+        assert abs(alone.overlap[0, 0] - full.overlap[a, b]) <= CELL_AGREEMENT
+        assert alone.foreshortening[0, 0] == full.foreshortening[a, b]
+    assert np.any(full.overlap > 0)  # the test sees overlaps
 
 
 def test_unreachable_optimum_is_said_with_its_loss():
