@@ -59,7 +59,12 @@ def binning(system, size) -> float:
 
 
 def check_device(device) -> str:
-    """``device`` ``"cpu"`` or ``"cuda"`` (when torch sees a GPU), or :class:`DatasetError`."""
+    """``device`` ``"cpu"`` or ``"cuda"`` (when torch sees a GPU; None: cuda when it does, else cpu), or
+    :class:`DatasetError`."""
+    if device is None:
+        from carmkin.extras import require
+
+        return "cuda" if require("torch", "drr").cuda.is_available() else "cpu"
     if device not in ("cpu", "cuda"):
         raise DatasetError(f"device must be 'cpu' or 'cuda', got {device!r}")
     if device == "cuda":

