@@ -108,11 +108,13 @@ def generate(spec: Spec, out, *, executor: str = "auto", address: str | None = N
                disable=None if progress else True, desc="dataset", smoothing=0.1)
     start, images = time.perf_counter(), 0
     try:
-        runs = _ray(spec, out, todo, address, num_cpus) if executor == "ray" else (
-            make_and_write(out, spec, k) for k in todo)
-        for rows in runs:
-            images += rows
-            bar.update(rows)
+        if executor == "ray":
+            for rows in _ray(spec, out, todo, address, num_cpus):
+                images += rows
+                bar.update(rows)
+        else:  # the bar counts each batch of images as it is rendered, not only whole shards
+            for k in todo:
+                images += make_and_write(out, spec, k, progress=bar.update)
     finally:
         bar.close()
     return Summary(str(out), len(todo), skipped, images, time.perf_counter() - start)

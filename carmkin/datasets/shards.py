@@ -188,8 +188,9 @@ def renderer_for(spec: Spec, target):
     return _RENDERERS[key]
 
 
-def make(spec: Spec, k: int):
-    """Shard k as a pyarrow Table (sampled, rendered, labelled): a function of the spec and k alone."""
+def make(spec: Spec, k: int, progress=None):
+    """Shard k as a pyarrow Table (sampled, rendered, labelled): a function of the spec and k alone.
+    ``progress(count)``: called as each batch of images is rendered (a progress bar's update)."""
     from . import sample_poses
     from .priors import default_target
     from .samples import DEFAULT_MARGIN
@@ -201,7 +202,7 @@ def make(spec: Spec, k: int):
                            **spec.parameters)
     target = samples.provenance["parameters"].get("target_m", default_target(spec.patient))
     renderer = renderer_for(spec, target)
-    images = renderer.render(samples.source_pose)
+    images = renderer.render(samples.source_pose, progress)
     P = renderer.projection_matrices(samples.source_pose)
     uv, visible = renderer.labels(P)
     # an all-zero DRR: the beam misses the CT (e.g. joint-uniform poses); kept, and counted in the report
@@ -249,9 +250,9 @@ def write(out, spec: Spec, k: int, table) -> Path:
     return path
 
 
-def make_and_write(out, spec: Spec, k: int) -> int:
-    """Make and write shard k; its row count."""
-    table = make(spec, k)
+def make_and_write(out, spec: Spec, k: int, progress=None) -> int:
+    """Make and write shard k; its row count (``progress``: see :func:`make`)."""
+    table = make(spec, k, progress)
     write(out, spec, k, table)
     return table.num_rows
 

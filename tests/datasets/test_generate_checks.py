@@ -96,7 +96,16 @@ def test_the_progress_bar_counts_images_on_a_terminal_and_is_silent_when_redirec
     spec = datasets.Spec(SYSTEM, "joint-uniform", 10, "40x30", shard_size=4)
     monkeypatch.setattr(scale, "check", lambda s: s)
     monkeypatch.setattr(scale, "prepare", lambda out, s: list(range(s.shards)))
-    monkeypatch.setattr(scale, "make_and_write", lambda out, s, k: s.rows(k)[1])
+    batches = []
+
+    def made(out, s, k, progress=None):  # a shard rendered in batches of at most 3 images
+        count = s.rows(k)[1]
+        for a in range(0, count, 3):
+            progress(min(3, count - a))
+            batches.append(progress.__self__.n)  # the bar's count after the batch
+        return count
+
+    monkeypatch.setattr(scale, "make_and_write", made)
     stream = _Terminal() if terminal else io.StringIO()
     monkeypatch.setattr(scale.sys, "stderr", stream)
     monkeypatch.delenv("TQDM_DISABLE", raising=False)
@@ -104,7 +113,8 @@ def test_the_progress_bar_counts_images_on_a_terminal_and_is_silent_when_redirec
     assert summary.images == 10 and summary.made == 3
     text = stream.getvalue()
     if terminal:
-        assert re.search(r"\b10/10\b", text) and "img/s" in text and re.search(r"\b0/10\b", text)
+        assert batches == [3, 4, 7, 8, 10]  # each batch counted as it is rendered, not only whole shards (4, 4, 2)
+        assert re.search(r"\b0/10\b", text) and re.search(r"\b10/10\b", text) and "img/s" in text
     else:
         assert text == ""
 
