@@ -96,7 +96,8 @@ class Spec:
                 "system_toml": to_toml(self.system), "patient": describe_patient(self.patient), "prior": self.prior,
                 "parameters": json.loads(json.dumps(self.parameters)), "n": self.n, "size": list(parse_size(self.size)),
                 "seed": self.seed, "shard_size": self.shard_size, "device": self.device, "n_samples": self.n_samples,
-                "margin_m": self.margin, "volume": self.volume, "carmkin": _version()}
+                "margin_m": self.margin, "volume": default_volume() if self.volume is None else self.volume,
+                "carmkin": _version()}
 
 
 def shard_path(out, spec: Spec, k: int) -> Path:
