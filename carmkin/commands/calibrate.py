@@ -35,13 +35,23 @@ def register(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from carmkin.calibration.files import calibrate
+    from carmkin.calibration import files
+    from carmkin.calibration.fit import identify
     from carmkin.calibration.report import held_reason
+    from carmkin.errors import CalibrationError
 
     if args.save_preset is not None:
         common.output_path(args.save_preset, "--save-preset", ("toml",))  # before any work
     system = common.system_from_args(args)
-    result, views = calibrate(system, args.views, args.phantom, reject_outliers=not args.no_outlier_test)
+    phantom = files.read_phantom(args.phantom)
+    common.check_unit_slip("--phantom", args.phantom, phantom.points.ravel() * common.MM_PER_M, error=CalibrationError)
+    views = files.read_views(args.views, system, phantom)
+    readings = views.q * common.to_cli_units(system)
+    prismatic = np.asarray(system.prismatic, dtype=bool)
+    common.check_unit_slip(f"views {args.views}:", "readings", readings[:, prismatic], readings[:, ~prismatic],
+                           error=CalibrationError)
+    result = identify(system, views.q, files.projections(phantom, views), points=phantom.points,
+                      reject_outliers=not args.no_outlier_test)
     outliers = [views.names[i] for i in result.outliers]
     print(f"preset {system.name}: {len(views.names)} views from {args.views}, phantom {args.phantom}")
     print(result.report(views.names))
@@ -62,5 +72,5 @@ def run(args: argparse.Namespace) -> int:
         "outlier_views": outliers, "noise_px": result.noise_px, "dof": result.dof,
         "cautions": [{"kind": w.kind.value, "message": w.message} for w in result.warnings
                      if w.kind.name != "OUTLIER_VIEWS"],
-        "covariance": np.asarray(result.covariance)})
+        "covariance_in_parameter_units": np.asarray(result.covariance)})  # rows and columns in the order of "fitted"
     return 0 if result.success else 1

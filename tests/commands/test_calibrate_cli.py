@@ -172,3 +172,16 @@ def test_the_preset_path_is_checked_before_any_work(tmp_path, capsys, monkeypatc
     monkeypatch.setattr(files, "calibrate", lambda *a, **k: pytest.fail("work began"))
     code, _, err = cli(["calibrate", views, "--phantom", phantom, "--save-preset", tmp_path / "c.txt"], capsys)
     assert code == 2 and "--save-preset" in err and ".toml" in err
+
+
+def test_readings_and_a_phantom_in_metres_are_refused_naming_the_slip(tmp_path, capsys):
+    phantom, views, Q, X, detected, names = simulate(tmp_path)
+    metres = files.write_phantom(tmp_path / "phantom-m.csv", [f"b{i:02d}" for i in range(len(X))], X / 1e3)
+    code, _, err = cli(["calibrate", views, "--phantom", metres], capsys)
+    assert code == 2 and "--phantom" in err and "given in m?" in err
+    radians = Q.copy()
+    radians[:, ~np.asarray(SYSTEM.prismatic)] *= np.pi / 180  # written as if m and rad were mm and deg
+    radians[:, np.asarray(SYSTEM.prismatic)] /= 1e3
+    files.write_views(tmp_path / "views-m.csv", SYSTEM, names, radians, detected)
+    code, _, err = cli(["calibrate", tmp_path / "views-m.csv", "--phantom", phantom], capsys)
+    assert code == 2 and "given in m?" in err and "radians" in err and "views-m.csv" in err
