@@ -2,7 +2,8 @@
 
 Each command runs in a fresh interpreter (subprocess), the three round-robin so that a busy machine slows
 them alike; the medians and their ratios to the numpy baseline measured in the same run are printed with the
-targets of issue 12 (import ≤ 1.5×, --help ≤ 2×). Speed is reported, never asserted.
+targets of issue 12 (import ≤ 1.5×, --help ≤ 2×), each "met" or "MISSED". Bytecode caching is on for the runs
+(:data:`ENVIRONMENT`), as for an installed copy. Speed is reported, never asserted.
 
 Run: python benchmarks/bench_import.py [--quick]
 """
@@ -10,6 +11,7 @@ Run: python benchmarks/bench_import.py [--quick]
 from __future__ import annotations
 
 import argparse
+import os
 import shutil
 import statistics
 import subprocess
@@ -30,9 +32,16 @@ def carmkin_command() -> list[str]:
     return [found] if found else [sys.executable, "-m", "carmkin.cli"]
 
 
+#: The commands run with bytecode caching on (``PYTHONDONTWRITEBYTECODE`` removed): numpy's wheel ships its
+#: compiled modules and an installed carmkin has them too, while with the variable set (as on some development
+#: machines) carmkin's source would be compiled again at every start-up (about a third of its import time), a
+#: cost no installed copy pays.
+ENVIRONMENT = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+
+
 def wall_time(command: list[str]) -> float:
     start = time.perf_counter()
-    subprocess.run(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=True)
+    subprocess.run(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=True, env=ENVIRONMENT)
     return time.perf_counter() - start
 
 
@@ -47,7 +56,7 @@ def main() -> None:
         "import carmkin": [sys.executable, "-c", "import carmkin"],
         "carmkin --help": [*carmkin_command(), "--help"],
     }
-    for command in commands.values():  # warm the file cache
+    for command in commands.values():  # warm the file cache and write the bytecode of what is not compiled yet
         wall_time(command)
     times: dict[str, list[float]] = {name: [] for name in commands}
     for _ in range(repeat):

@@ -149,8 +149,9 @@ def _hull(points: np.ndarray) -> np.ndarray:
 def scene_figure(system, q, patient=None, target=None, path=None, title: str = "") -> Figure:
     """Two orthographic views of the table frame (m shown as mm): the side view (Z0 across, Y0 up the page: Y0
     points down) and the end view (X0 across): the table top, the patient's bodies (their bounding boxes' outlines),
-    the C-arm's collision bodies (its boxes: cart, arm, C, source housing, detector; a body in collision filled red)
-    over its DH frame origins joined in chain order (after a mount's base and joint points), the X-ray beam from
+    the C-arm's collision bodies (its boxes: cart, arm, C, source housing, detector; a body in collision filled red;
+    not the DH frames' skeleton, which passes through the patient where the bodies clear it), a mount's base and
+    joint points, the X-ray beam from
     the source to the detector centre and the ``target`` (3,) m. ``patient``: None, a list of Obstacle or a model with ``obstacles()``.
 
     The closest pair of :class:`carmkin.world.World` (C-arm part against table top, patient or floor) is drawn
@@ -163,7 +164,6 @@ def scene_figure(system, q, patient=None, target=None, path=None, title: str = "
     from carmkin.world.obstacles import as_obstacles, link_of
 
     q = np.asarray(q, dtype=float)
-    frames = np.asarray(system.dh_frames(q))[:, :3, 3]
     robot = np.zeros((0, 3))  # a mount's base and joint points, floor up (carmkin.model.mount_joints)
     if system.mount.joints:
         rest = q.copy()
@@ -204,8 +204,6 @@ def scene_figure(system, q, patient=None, target=None, path=None, title: str = "
             ax.add_patch(Polygon(_hull(corners[:, [axis, 1]] * 1e3), closed=True, gid=f"carm:{name}",
                                  facecolor=SCENE_COLOURS["collision" if hit else "carm"], alpha=0.35,
                                  edgecolor=SCENE_COLOURS["carm"], lw=0.8, label="C-arm bodies"))
-        chain = np.vstack((np.zeros(3) if not len(robot) else robot[-1], frames, source)) * 1e3
-        ax.plot(chain[:, axis], chain[:, 1], "-o", color=SCENE_COLOURS["carm"], ms=2, lw=1, label="C-arm (DH frames)")
         if len(robot):
             ax.plot(robot[:, axis] * 1e3, robot[:, 1] * 1e3, "-o", color="k", ms=3, lw=3, label="mount (robot axes)")
         beam = np.vstack((source, detector)) * 1e3

@@ -9,7 +9,8 @@ covariance, the residual per view and an identifiability report; write the calib
 See docs/calibration.md. Modules: :mod:`.quantities` (the parameter list, units, priority order),
 :mod:`.reprojection` (reference points, the residual's pixels), :mod:`.identifiability` (the rule),
 :mod:`.fit` (:func:`identify`), :mod:`.simulate` (measured P of a simulated device), :mod:`.report`,
-:mod:`.output` (the calibrated preset). scipy loads on first use.
+:mod:`.output` (the calibrated preset), :mod:`.files` (phantom and views files for ``carmkin calibrate``).
+scipy loads on first use.
 """
 
 from .fit import CalibrationResult, FitWarning, WarningKind, identify

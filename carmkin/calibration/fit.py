@@ -141,11 +141,16 @@ class CalibrationResult:
         hint = difflib.get_close_matches(str(name), list(self.names), n=1)
         raise CalibrationError(f"no parameter {name!r} was fitted" + (f"; did you mean {hint[0]!r}?" if hint else ""))
 
-    def report(self) -> str:
-        """The result for people (mm, deg, px), one line per parameter and per held parameter."""
+    def report(self, view_names=None) -> str:
+        """The result for people (mm, deg, px), one line per parameter and per held parameter; outlier views
+        named by ``view_names`` (a name per view of ``q``) when given, else by index."""
         from .report import render
 
-        return render(self)
+        if view_names is not None and (isinstance(view_names, str) or not hasattr(view_names, "__len__")
+                                       or len(view_names) != len(self.residual_px)):
+            raise CalibrationError(f"view_names must name each of the {len(self.residual_px)} views, got "
+                                   f"{view_names!r:.80}")
+        return render(self, None if view_names is None else [str(v) for v in view_names])
 
     def save_preset(self, path):
         """Write the calibrated system as a preset file (TOML) that :func:`carmkin.load_preset` reads back; each

@@ -8,10 +8,10 @@ import numpy as np
 from .identifiability import Reason
 
 
-def render(result) -> str:
+def render(result, view_names=None) -> str:
     """Lines: one per fitted parameter (estimate, change from nominal, 1σ), one per held parameter, then the
     residual (RMS per view before and after, the noise it implies), then one per caution (outlier views left
-    out, joints the views do not move)."""
+    out, by ``view_names`` when given, else by index; joints the views do not move)."""
     lines = [f"fitted {len(result.names)} parameters from {len(result.residual_px)} views "
              f"({'converged' if result.success else 'NOT converged: ' + result.message})"]
     for name, unit, value, start, std in zip(result.names, result.units, result.values, result.nominal_values,
@@ -23,7 +23,13 @@ def render(result) -> str:
     lines.append(f"residual per view (RMS over its reference points): nominal {np.median(result.residual_before_px):.3g} px"
                  f" median, fitted {np.median(result.residual_px):.3g} px median, {result.residual_px.max():.3g} px max;"
                  f" noise implied s = {result.noise_px:.3g} px ({result.dof} degrees of freedom)")
-    lines.extend(f"caution ({warning.kind.value}): {warning.message}" for warning in result.warnings)
+    for warning in result.warnings:
+        message = warning.message
+        if view_names is not None and warning.kind.name == "OUTLIER_VIEWS":
+            message = ("views " + ", ".join(f"{view_names[i]} ({result.residual_px[i]:.3g} px RMS against the fit)"
+                                            for i in result.outliers)
+                       + " disagree with the others and were left out of the fit")
+        lines.append(f"caution ({warning.kind.value}): {message}")
     return "\n".join(lines)
 
 

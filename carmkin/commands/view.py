@@ -21,7 +21,6 @@ from __future__ import annotations
 import argparse
 import signal
 import sys
-import tempfile
 import threading
 from pathlib import Path
 
@@ -103,6 +102,8 @@ def _write_static(viewer, args) -> None:
         if args.png:
             print(f"wrote {screenshot(args.html, args.png)}")
         return
+    import tempfile
+
     with tempfile.TemporaryDirectory(prefix="carmkin-view-") as folder:  # --png alone
         page = Path(folder) / "view.html"
         viewer.save_html(page)

@@ -158,10 +158,20 @@ def _report(args, system, plan, position) -> int:
     common.write_json(args, {"preset": system.name, "target_mm": list(np.asarray(plan.view.target) * MM),
                              "patient": _scene.patient_json(patient, getattr(patient, "position", position)),
                              "margin_mm": args.margin_mm, **_plan_json(system, plan, position)})
-    shown = plan.q if plan.success else (plan.nearest.q if plan.nearest is not None else None)
+    # the picture shows what the text reports: the plan; for a view unreachable by contact the configuration in
+    # contact (the pair that fails drawn red); for one beyond the joint limits, the nearest reachable view
+    title = f"view {_describe_view(plan.view, position)}"
+    if plan.success:
+        shown = plan.q
+    elif plan.q_contact is not None:
+        shown, title = plan.q_contact, f"{title} UNREACHABLE: the configuration in contact"
+    elif plan.nearest is not None:
+        shown = plan.nearest.q
+        title = f"{title} unreachable ({plan.binding}): the nearest reachable view {_describe_view(plan.nearest.view, position)}"
+    else:
+        shown = None
     if shown is not None:
-        _scene.write_figures(args, system, shown, patient, plan.view.target,
-                             f"view {_describe_view(plan.view, position)}" + ("" if plan.success else " (nearest drawn)"))
+        _scene.write_figures(args, system, shown, patient, plan.view.target, title)
     return 0 if plan.success else 1
 
 
@@ -196,6 +206,8 @@ def _print_plan(system, plan, position) -> None:
             print(f"  certified motion (every joint at once): {plan.motion}")
         return
     print(f"unreachable: {plan.reason}")
+    if plan.q_contact is not None:
+        print(f"in contact at q = {common.format_joints(system, plan.q_contact)} (joints in range; drawn by --png/--html)")
     if plan.nearest is not None:
         n = plan.nearest
         print(f"nearest reachable view: {_describe_view(n.view, position)}, {np.degrees(plan.angle):.2f}° away, "
@@ -216,6 +228,8 @@ def _plan_json(system, plan, position) -> dict:
                              "method": plan.motion.method, "duration_s": plan.motion.duration,
                              "min_clearance_mm": plan.motion.min_clearance * MM,
                              "waypoints": [common.joints_json(system, q) for q in plan.motion.waypoints]}
+    if plan.q_contact is not None:
+        out["contact_q"] = common.joints_json(system, plan.q_contact)
     if plan.nearest is not None:
         out["nearest"] = {"angles_deg": list(plan.nearest.view.angles(position)), "angle_deg": float(np.degrees(plan.angle)),
                           "q": common.joints_json(system, plan.nearest.q), "clearance_mm": plan.nearest.clearance * MM}

@@ -34,7 +34,9 @@ def sample_poses(system, prior, n, seed=0, patient=None, *, shard=0, margin=DEFA
 
     require_system(system, DatasetError)
     prior = priors.check_prior(prior)
-    n = integer(n, "n", low=1, error=DatasetError)
+    from .scale import MAX_IMAGES
+
+    n = integer(n, "n", low=1, high=MAX_IMAGES, error=DatasetError)
     seed = integer(seed, "seed", low=0, error=DatasetError)
     shard = integer(shard, "shard", low=0, error=DatasetError)
     margin = real_scalar(margin, "margin", error=DatasetError, low=0.0, high=1.0, unit="m")

@@ -10,6 +10,7 @@ from pathlib import Path
 from carmkin.errors import DatasetError
 from carmkin.extras import require
 
+from .priors import MIN_ROUND
 from .shards import MANIFEST
 
 
@@ -18,7 +19,8 @@ class DatasetInfo:
     """``manifest`` (the spec as JSON), ``shards`` expected, ``done`` (indices there whole), ``missing``,
     ``rows`` written, ``image_shape`` (rows, columns), ``columns`` (name: Arrow type), ``proposed`` and
     ``accepted`` poses summed over the shards' rejection reports, ``reasons`` summed, ``empty`` the all-zero
-    images (the beam missed the CT) summed over the shards."""
+    images (the beam missed the CT) summed over the shards, ``used_parameters`` the prior's parameters as the
+    first shard there used them (defaults filled in)."""
 
     out: str
     manifest: dict
@@ -32,6 +34,7 @@ class DatasetInfo:
     accepted: int
     reasons: dict
     empty: int = 0
+    used_parameters: dict | None = None
 
     def lines(self) -> list[str]:
         m = self.manifest
@@ -40,10 +43,16 @@ class DatasetInfo:
                f"rows {self.rows} of {m['n']}; shards {len(self.done)} of {self.shards} done"
                + (f" (missing: {', '.join(map(str, self.missing[:10]))}{' ...' if len(self.missing) > 10 else ''})"
                   if self.missing else ""),
-               f"parameters {json.dumps(m['parameters'], sort_keys=True)}"]
+               "parameters given: " + (", ".join(f"{k} {json.dumps(v)}" for k, v in sorted(m["parameters"].items()))
+                                       or "none (the prior's defaults)")]
+        if self.used_parameters:
+            out.append("parameters used: " + ", ".join(f"{k} {json.dumps(v)}" for k, v in self.used_parameters.items()
+                                                       if k != "sd_source"))
         if self.proposed:
-            out.append(f"poses accepted {self.accepted} of {self.proposed} proposed "
-                       f"({self.accepted / self.proposed:.1%}); rejected by {json.dumps(self.reasons, sort_keys=True)}")
+            rejected = ", ".join(f"{k} {v}" for k, v in sorted(self.reasons.items())) or "none"
+            out.append(f"proposals: {self.accepted} of {self.proposed} feasible ({self.accepted / self.proposed:.1%}), "
+                       f"{self.rows} of them used (each shard proposes in rounds of at least {MIN_ROUND}; the "
+                       f"feasible ones beyond its rows are left unused); rejected: {rejected}")
         if self.rows:
             out.append(f"empty images (all zero: the beam misses the CT) {self.empty} of {self.rows}")
         if self.image_shape:
@@ -70,6 +79,7 @@ def info(out) -> DatasetInfo:
         raise DatasetError(f"{str(path)!r} is not a carmkin dataset manifest ({exc})") from None
     shards = -(-n // size)
     done, missing, rows, shape, columns, proposed, accepted, reasons, empty = [], [], 0, None, {}, 0, 0, {}, 0
+    used = None
     for k in range(shards):
         shard = folder / f"shard-{k:05d}-of-{shards:05d}.parquet"
         expected = min(size, n - k * size)
@@ -88,9 +98,11 @@ def info(out) -> DatasetInfo:
         shape = tuple(extra["image_shape"])
         columns = {f.name: str(f.type) for f in schema}
         report = extra["rejections"]
+        if used is None:
+            used = extra.get("provenance", {}).get("parameters")
         empty += extra.get("empty_images", {}).get("count", 0)
         proposed, accepted = proposed + report["proposed"], accepted + report["accepted"]
         for key, count in report["reasons"].items():
             reasons[key] = reasons.get(key, 0) + count
     return DatasetInfo(str(folder), manifest, shards, tuple(done), tuple(missing), rows, shape, columns, proposed,
-                       accepted, reasons, empty)
+                       accepted, reasons, empty, used)

@@ -3,9 +3,9 @@
 keeps the feasible ones, rejections are counted by reason.
 
 * ``standard-views``: the named standard views (:mod:`carmkin.views.standard`), each proposal a view drawn
-  uniformly, its primary and secondary angles perturbed by a Gaussian of SD :data:`CLINICAL_SD_DEG` — X-ray
-  Genius' "reasonable level of clinical variance" (Kausch et al., X-ray Genius / "Toward automatic C-arm
-  positioning for standard projections in orthopedic surgery", IJCARS 2020: SD 2.5°); the roll about the beam
+  uniformly, its primary and secondary angles perturbed by a Gaussian of SD :data:`CLINICAL_SD_DEG` — the X-ray
+  Genius user guide ("How to Use X-ray Genius", https://app.xray-genius.com/guide/, §1 Rotation: "Randomize with
+  a standard deviation of 2.5° to simulate a reasonable level of clinical variance"); the roll about the beam
   is the planner's (free) or, with ``roll_sd_deg``, Gaussian about the roll the C-arm takes for the view when
   it is free (a mobile C-arm rolls the image only through its wigwag, so rotation 0 is no nominal roll).
 * ``reachable-sphere``: directions uniform over the part of the view sphere the system reaches: a
@@ -32,7 +32,7 @@ from carmkin.errors import DatasetError
 
 from .samples import Rejections, patient_frame
 
-#: SD (deg) of the clinical variance about a standard view (X-ray Genius, Kausch et al. 2020).
+#: SD (deg) of the clinical variance about a standard view (the X-ray Genius user guide, §1 Rotation and §2 Tilt).
 CLINICAL_SD_DEG = 2.5
 #: Depth (m) of the default target in front of the patient's reference point (LPS −y: anterior; the
 #: table origin for a patient lying on the preset tables, where the views and sweeps tests aim).
@@ -147,8 +147,8 @@ def _rounds(n: int, propose, prior: str):
 
 
 # --- the priors --------------------------------------------------------------------------------------------
-def standard_views(system, patient, rng, n, margin, *, views=None, sd_deg=CLINICAL_SD_DEG, roll_sd_deg=None,
-                   target_m=None):
+def _standard_views_parameters(patient, views=None, sd_deg=CLINICAL_SD_DEG, roll_sd_deg=None, target_m=None):
+    """(view names, sd, roll_sd, target) of the standard-views prior, checked."""
     from carmkin.views.standard import STANDARD_VIEWS
 
     if views is not None and (isinstance(views, str) or not isinstance(views, (list, tuple))
@@ -157,10 +157,18 @@ def standard_views(system, patient, rng, n, margin, *, views=None, sd_deg=CLINIC
     names = list(STANDARD_VIEWS) if views is None else [v.lower() for v in views]
     unknown = [v for v in names if v not in STANDARD_VIEWS]
     if unknown or not names:
-        raise DatasetError(f"views must name standard views ({', '.join(STANDARD_VIEWS)}), got {views!r}")
+        raise DatasetError(f"views must name standard views ({', '.join(STANDARD_VIEWS)}), got {views!r}"
+                           + (f": unknown {', '.join(map(repr, unknown))}" if unknown else ""))
     sd = _number(sd_deg, "sd_deg", 0.0, 45.0, "deg")
     roll_sd = None if roll_sd_deg is None else _number(roll_sd_deg, "roll_sd_deg", 0.0, 180.0, "deg")
-    target = _target(target_m, patient)
+    return names, sd, roll_sd, _target(target_m, patient)
+
+
+def standard_views(system, patient, rng, n, margin, *, views=None, sd_deg=CLINICAL_SD_DEG, roll_sd_deg=None,
+                   target_m=None):
+    from carmkin.views.standard import STANDARD_VIEWS
+
+    names, sd, roll_sd, target = _standard_views_parameters(patient, views, sd_deg, roll_sd_deg, target_m)
     base = np.array([[STANDARD_VIEWS[v].primary_deg, STANDARD_VIEWS[v].secondary_deg] for v in names])
     seen = []
 
@@ -184,7 +192,8 @@ def standard_views(system, patient, rng, n, margin, *, views=None, sd_deg=CLINIC
     k, offsets, keep = (np.concatenate(parts) for parts in zip(*seen))
     statistics = {name: cut_statistics(offsets[k == i], keep[k == i]) for i, name in enumerate(names)}
     params = {"views": names, "sd_deg": sd, "roll_sd_deg": roll_sd, "target_m": target.tolist(),
-              "sd_source": "X-ray Genius (Kausch et al., IJCARS 2020): SD 2.5 deg, clinical variance"}
+              "sd_source": "X-ray Genius user guide (How to Use X-ray Genius, section 1 Rotation): SD 2.5 deg, "
+                           "a reasonable level of clinical variance"}
     return Q, labels, nominal, tally.rejections(statistics=statistics), params
 
 
@@ -238,12 +247,16 @@ def _reach_map(system, patient, target, primary_deg, secondary_deg, margin):
     return cells
 
 
-def reachable_sphere(system, patient, rng, n, margin, *, cell_deg=5.0, jitter_mm=20.0, target_m=None):
+def _reachable_sphere_parameters(patient, cell_deg=5.0, jitter_mm=20.0, target_m=None):
+    """(cell deg, jitter m, target) of the reachable-sphere prior, checked."""
     cell = _number(cell_deg, "cell_deg", 0.5, 45.0, "deg")
     if abs(180.0 / cell - round(180.0 / cell)) > 1e-9:
         raise DatasetError(f"cell_deg must divide 180 deg, got {cell:g}")
-    jitter = _number(jitter_mm, "jitter_mm", 0.0, 500.0, "mm") / 1e3
-    target = _target(target_m, patient)
+    return cell, _number(jitter_mm, "jitter_mm", 0.0, 500.0, "mm") / 1e3, _target(target_m, patient)
+
+
+def reachable_sphere(system, patient, rng, n, margin, *, cell_deg=5.0, jitter_mm=20.0, target_m=None):
+    cell, jitter, target = _reachable_sphere_parameters(patient, cell_deg, jitter_mm, target_m)
     p_edges, s_edges = np.linspace(-180, 180, round(360 / cell) + 1), np.linspace(-90, 90, round(180 / cell) + 1)
     p_mid, s_mid = 0.5 * (p_edges[1:] + p_edges[:-1]), 0.5 * (s_edges[1:] + s_edges[:-1])
     cells = _reach_map(system, patient, target, p_mid, s_mid, margin)
@@ -275,20 +288,30 @@ def reachable_sphere(system, patient, rng, n, margin, *, cell_deg=5.0, jitter_mm
 SWEEP_VIEWS = 50
 
 
+#: The sweep prior gives up when none of its first this many proposals fits (10): the target is jittered by at
+#: most ``jitter_mm``, so a sweep that fails ten times around it is no matter of luck (a hang of 900 s before).
+SWEEP_GIVE_UP = 10
+
+
+def _sweep_parameters(patient, arc_deg=190.0, n_views=SWEEP_VIEWS, jitter_mm=20.0, target_m=None):
+    """(arc deg, frames, jitter m, target) of the sweep prior, checked."""
+    return (_number(arc_deg, "arc_deg", 1e-3, 360.0, "deg"), _integer(n_views, "n_views", 2, 10_000),
+            _number(jitter_mm, "jitter_mm", 0.0, 500.0, "mm") / 1e3, _target(target_m, patient))
+
+
 def sweep(system, patient, rng, n, margin, shard=0, *, arc_deg=190.0, n_views=SWEEP_VIEWS, jitter_mm=20.0,
           target_m=None):
     """Sweeps labelled ``"sweep K.I"``: the I-th proposal of shard K (unique across the shards of a dataset)."""
     from carmkin.sweeps import plan_sweep
 
-    arc = _number(arc_deg, "arc_deg", 1e-3, 360.0, "deg")
-    views = _integer(n_views, "n_views", 2, 10_000)
-    jitter = _number(jitter_mm, "jitter_mm", 0.0, 500.0, "mm") / 1e3
-    target = _target(target_m, patient)
+    arc, views, jitter, target = _sweep_parameters(patient, arc_deg, n_views, jitter_mm, target_m)
     tally, kept, failures = _Tally(), [], []
     while tally.accepted < n:
-        if tally.proposed >= MAX_PROPOSAL_FACTOR * math.ceil(n / views) + MAX_PROPOSAL_FACTOR:
-            raise DatasetError(f"prior 'sweep' cannot be met: {tally.accepted} of {tally.proposed} sweeps of "
-                               f"{arc:g} deg fit around {target.tolist()} m ({'; '.join(failures[:2])})")
+        if tally.proposed >= MAX_PROPOSAL_FACTOR * math.ceil(n / views) + MAX_PROPOSAL_FACTOR or (
+                not kept and tally.proposed >= SWEEP_GIVE_UP):
+            raise DatasetError(f"prior 'sweep' cannot be met: {len(kept)} of {tally.proposed} sweeps of "
+                               f"{arc:g} deg fit around {target.tolist()} m ({'; '.join(failures[:2])}); try a "
+                               "smaller --arc-deg or another --target-mm")
         t = target + jitter * (2.0 * rng.random(3) - 1.0)
         planned = plan_sweep(system, t, arc, views, patient, margin=margin)
         index = tally.proposed
@@ -326,6 +349,17 @@ DRAW = {"standard-views": standard_views, "reachable-sphere": reachable_sphere, 
         "joint-uniform": joint_uniform}
 
 
+def default_shard_size(prior: str, parameters: dict) -> int:
+    """Rows per shard when none is given: :data:`~carmkin.datasets.shards.SHARD_SIZE` (64), or for the ``sweep``
+    prior whole sweeps: the largest multiple of ``n_views`` up to 64, at least one sweep."""
+    from .shards import SHARD_SIZE
+
+    if prior != "sweep":
+        return SHARD_SIZE
+    views = _integer(parameters.get("n_views", SWEEP_VIEWS), "n_views", 2, 10_000)
+    return views * max(1, SHARD_SIZE // views)
+
+
 def check_whole_groups(prior: str, parameters: dict, n: int, shard_size: int) -> None:
     """A dataset of the ``sweep`` prior holds whole sweeps, none cut at a shard's end: ``shard_size`` and
     ``n`` multiples of ``n_views``, or :class:`DatasetError` naming them and the nearest that are."""
@@ -338,6 +372,18 @@ def check_whole_groups(prior: str, parameters: dict, n: int, shard_size: int) ->
             raise DatasetError(f"{name} = {value} is no multiple of n_views = {views}: a sweep would be cut "
                                f"{'at a shard boundary' if name == 'shard_size' else 'at the end'}; use "
                                f"{name} = {lower}" + (f" or {upper}" if upper != lower else ""))
+
+
+#: Each prior's parameter check (its parameters' values, without drawing).
+CHECK = {"standard-views": _standard_views_parameters, "reachable-sphere": _reachable_sphere_parameters,
+         "sweep": _sweep_parameters, "joint-uniform": lambda patient: ()}
+
+
+def check_values(prior: str, given: dict, patient=None) -> None:
+    """:class:`DatasetError` naming any of ``given`` that ``prior`` does not take or whose value it refuses
+    (unknown view names, angles out of range, ...): every parameter checked before any work."""
+    check_parameters(prior, given)
+    CHECK[prior](patient, **given)
 
 
 def check_prior(prior) -> str:

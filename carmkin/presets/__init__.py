@@ -8,12 +8,9 @@ give. See docs/PRESETS.md.
 
 from __future__ import annotations
 
-import difflib
 import math
 import os
-import tomllib
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -65,8 +62,10 @@ class Provenance:
     note: str
 
 
-def _preset_dir():
-    return resources.files("carmkin.presets")
+def _preset_dir() -> Path:
+    """The built-in preset files' folder: this package's own (package data; no importlib.resources, whose import
+    costs ``import carmkin`` tempfile and random)."""
+    return Path(__file__).resolve().parent
 
 
 def list_presets() -> list[str]:
@@ -193,6 +192,8 @@ def _text(label: str) -> str:
 
 
 def _toml(text: str, label: str) -> dict:
+    import tomllib  # on first use: import carmkin stays light
+
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:  # the message says "(at line L, column C)"
@@ -265,6 +266,8 @@ def _builtin_file(name: str, what: str) -> str:
     """The path of the built-in preset ``name`` (its file label in messages and provenance)."""
     names = list_presets()
     if name not in names:
+        import difflib
+
         hint = difflib.get_close_matches(name, names, n=1)
         raise UnknownPresetError(f"unknown {what} {name!r}" + (f"; did you mean {hint[0]!r}?" if hint else "")
                                  + f"; available: {', '.join(names)}")

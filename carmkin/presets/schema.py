@@ -7,7 +7,6 @@ The bounds are those of :mod:`carmkin.model.bounds`, converted to mm and degrees
 
 from __future__ import annotations
 
-import difflib
 import re
 import math
 from dataclasses import dataclass
@@ -158,6 +157,8 @@ SETUP_FORMS = (("table_origin_in_xray_mm", "table_x_axis_in_xray", "table_z_axis
 
 
 def _nearest(name: str, candidates) -> str:
+    import difflib
+
     hint = difflib.get_close_matches(name, list(candidates), n=1)
     return f"; did you mean {hint[0]!r}?" if hint else f"; valid: {', '.join(sorted(candidates))}"
 

@@ -115,6 +115,7 @@ def solve_cells(ctx, targets, directions, distance_range, x_axes=None) -> Outcom
     rank = np.full(N, -1)
     closest = np.full(N, np.inf)
     closest_pair = np.full(N, -1)
+    contact_q = np.full((N, system.nq), np.nan)  # the configuration of each cell's closest contact
     any_branch = np.zeros(N, dtype=bool)
     for choice, orbitals, rolls in _passes(system, ctx.q_ref):
         open_ = np.flatnonzero(~reachable & (checks < MAX_CHECKS))
@@ -163,7 +164,7 @@ def solve_cells(ctx, targets, directions, distance_range, x_axes=None) -> Outcom
                 if dk >= margin:
                     reachable[c], q_out[c], clearance[c], rank[c] = True, q[k], dk, checks[c] - 1
                 elif dk < closest[c]:
-                    closest[c], closest_pair[c] = dk, pk
+                    closest[c], closest_pair[c], contact_q[c] = dk, pk, q[k]
     distance = np.full(N, np.nan)
     if reachable.any():
         F = system.fk(q_out[reachable])
@@ -181,7 +182,8 @@ def solve_cells(ctx, targets, directions, distance_range, x_axes=None) -> Outcom
                          "within its joint ranges" if any_branch[c] else
                          "out of reach: no sampled source pose of this beam is within the robot's arm")
             binding[c] = "mount"
-    return Outcome(reachable, q_out, clearance, distance, reason, binding, rank)
+    contact_q[binding != "contact"] = np.nan
+    return Outcome(reachable, q_out, clearance, distance, reason, binding, rank, contact_q)
 
 
 def with_mount(ctx, out: Outcome, targets, directions, distance_range, x_axes=None, workers: int = 1) -> Outcome:

@@ -65,7 +65,9 @@ class ViewPlan:
     <carmkin.model.motion.Duration>`): the time of the moves from ``q_current`` (see the module docstring);
     ``motion``: with ``q_current``, the certified multi-joint motion to the plan (a
     :class:`carmkin.motion.Trajectory`: the straight line when it is clear, else planned with OMPL; ``success``
-    False with the reason when none was found in time), or None."""
+    False with the reason when none was found in time), or None. ``q_contact``: a view unreachable by contact
+    (``binding`` ``"contact"``) carries the configuration, joints in range, whose contact its ``reason`` names
+    (what a picture of the failure draws); None otherwise."""
 
     view: View
     success: bool
@@ -83,6 +85,7 @@ class ViewPlan:
     validity: object = None
     duration: motion.Duration | None = None
     motion: object = None
+    q_contact: np.ndarray | None = None
 
 
 def patient_obstacles(patient) -> tuple:
@@ -223,7 +226,7 @@ def plan_view(system, view, patient=None, q_current=None, *, margin: float = DEF
         if found is not None:
             q, clearance, distance = found
             plan = _replace(plan, success=True, q=q, clearance=clearance, distance=distance, reason=None, binding="",
-                            solver="qp")
+                            solver="qp", q_contact=None)
     if plan.success:
         plan = _with_report(plan, system, world, margin)
     if plan.success and q_current is not None:
@@ -245,7 +248,9 @@ def _plan_cells(ctx, views) -> list[ViewPlan]:
     x_axes = np.array([v.x_axis if v.x_axis is not None else (np.nan,) * 3 for v in views], dtype=float)
     out = _solve_cells(ctx, targets, directions, ranges, x_axes)
     return [ViewPlan(v, bool(out.reachable[i]), out.q[i], float(out.clearance[i]), float(out.distance[i]),
-                     out.reason[i], str(out.binding[i])) for i, v in enumerate(views)]
+                     out.reason[i], str(out.binding[i]),
+                     q_contact=out.contact_q[i].copy() if str(out.binding[i]) == "contact"
+                     and np.isfinite(out.contact_q[i]).all() else None) for i, v in enumerate(views)]
 
 
 def _solve_cells(ctx, targets, directions, ranges, x_axes):

