@@ -32,6 +32,9 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 #: full run on 2 shared cores (``python -m pytest --durations=80``, 2026-11-27: 546 s in all, these ~330 s).
 SLOW = (
     "views/test_maps.py::",
+    "views/test_bruteforce.py::test_no_unreachable_view_is_feasible_by_brute_force",
+    "calibration/test_outliers_and_sigma.py::test_reported_sigma_cover_95_percent_with_default_points_on_a_helix_phantom",
+    "world/test_swept.py::test_certified_minimum_bounds_dense_samples_from_below",
     "views/test_plan_view.py::test_every_view_of_a_collision_free_configuration_is_planned",
     "test_singularity.py::test_pinocchio_det_equals_eq_4_7",
     "test_singularity.py::test_regular_configurations_have_rank_6",

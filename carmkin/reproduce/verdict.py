@@ -113,17 +113,37 @@ def _row_inputs(seed, kind: str) -> float:
     return real_scalar(seed, "seed", error=SimulationError)
 
 
+#: What the forked workers of :func:`_repeats` run: set before the fork, read by :func:`_one_repeat`.
+_FORKED = None
+
+
+def _one_repeat(seed: int, one=None):
+    try:
+        return (one or _FORKED)(seed)
+    except SimulationError:
+        return None
+
+
 def _repeats(one, repeats: int) -> list:
     """``one(seed)`` for seeds 0 … repeats − 1; a repeat whose procedure failed (:class:`SimulationError`:
     the camera lost the pattern, no first configuration allowed the panorama) is ``None``: its values are
-    left out, and each row's criterion states how many repeats it has."""
-    out = []
-    for seed in range(count(repeats, "repeats")):
-        try:
-            out.append(one(seed))
-        except SimulationError:
-            out.append(None)
-    return out
+    left out, and each row's criterion states how many repeats it has. The repeats are independent (each its own
+    seed), so they run over one forked process per CPU where the platform forks (the same values as one after
+    the other: ``tests/reproduce/test_experiments.py``)."""
+    import multiprocessing
+    import os
+
+    global _FORKED
+    seeds = range(count(repeats, "repeats"))
+    workers = min(len(seeds), os.cpu_count() or 1)
+    if workers < 2 or "fork" not in multiprocessing.get_all_start_methods() or multiprocessing.current_process().daemon:
+        return [_one_repeat(seed, one) for seed in seeds]
+    _FORKED = one  # a closure over the system and the model: inherited by the fork, never pickled
+    try:
+        with multiprocessing.get_context("fork").Pool(workers) as pool:
+            return pool.map(_one_repeat, seeds, chunksize=1)
+    finally:
+        _FORKED = None
 
 
 def _pick(runs, get) -> list:

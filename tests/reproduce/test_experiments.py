@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -283,3 +284,25 @@ def test_the_region_models_are_the_fits_starred_points():
     assert len(rows) == 12 and all(r.verdict in verdict.VERDICTS for r in rows)
     with pytest.raises(SimulationError, match="models"):
         verdict.verdict_over_region(SYSTEM, [], repeats=2)
+
+
+def test_repeats_over_forked_workers_give_the_values_of_one_after_the_other(monkeypatch):
+    """The repeats run over one forked process per CPU: in seed order, a failed repeat None, and the rows of a
+    real experiment equal to those computed one repeat after the other (the test can fail: a worker sharing
+    state or a shuffled order)."""
+    import os
+
+    def one(seed):
+        if seed == 2:
+            raise SimulationError("the camera lost the pattern")
+        return float(np.random.default_rng(seed).normal())
+
+    monkeypatch.setattr(os, "cpu_count", lambda: 3)
+    forked = verdict._repeats(one, 5)
+    assert forked[2] is None
+    assert forked[:2] + forked[3:] == [float(np.random.default_rng(s).normal()) for s in (0, 1, 3, 4)]
+    system = carmkin.load_preset("siremobile-iso-c3d")
+    parallel = verdict.EXPERIMENTS["3.2"](system, ErrorModel(), 3)
+    monkeypatch.setattr(os, "cpu_count", lambda: 1)
+    serial = verdict.EXPERIMENTS["3.2"](system, ErrorModel(), 3)
+    assert [dataclasses.astuple(r) for r in parallel] == [dataclasses.astuple(r) for r in serial]

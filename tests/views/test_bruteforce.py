@@ -70,17 +70,19 @@ def test_the_oracle_finds_reachable_views_feasible():
 
 @pytest.mark.slow
 def test_no_unreachable_view_is_feasible_by_brute_force():
-    """40 unreachable views of two presets: none has a configuration the oracle finds."""
+    """16 unreachable views of two presets, spread over each map's unreachable cells: none has a configuration
+    the oracle finds (8 a preset: 20 took 6 min of the suite on a loaded machine; the long run is
+    ``python benchmarks/bruteforce_views.py``)."""
     views = []
     for preset, target, step in (("siremobile-iso-c3d", (0.0, 0.0, 0.0), 5),
                                  ("siremobile-iso-c3d-motorized-table", (0.0, 0.0, 0.0), 10)):
         system, patient, world = _setup(preset)
         m = reach_map(system, target, np.arange(-90, 91, step), np.arange(-45, 46, step), patient, margin=MARGIN)
         cells = list(zip(*np.nonzero(~m.reachable)))
-        pick = np.linspace(0, len(cells) - 1, min(20, len(cells))).astype(int)
+        pick = np.linspace(0, len(cells) - 1, min(8, len(cells))).astype(int)
         views += [(system, world, target, m.directions[cells[k]], (preset, m.primary_deg[cells[k][0]],
                                                                    m.secondary_deg[cells[k][1]])) for k in pick]
-    assert len(views) >= 30
+    assert len(views) == 16
     feasible = [name for system, world, target, d, name in views
                 if bruteforce.brute(system, world, np.asarray(target), d, MARGIN).q is not None]
     assert feasible == []
