@@ -27,7 +27,7 @@ from carmkin.errors import CarmkinError, InvalidConfigurationError
 from carmkin.robot import validity
 from carmkin.world.tolerances import BOUND_SLACK
 from carmkin.world import Obstacle, World
-from carmkin.validation import JOINT_VALUE_LIMIT, real_array, real_scalar
+from carmkin.validation import JOINT_VALUE_LIMIT, frozen_instance, real_array, real_scalar
 
 from .backends import BACKENDS, make_backend
 from .loop import QPIK
@@ -273,9 +273,11 @@ class PreparedIK:
             return self._qp(kind, target).tasks[0].errors(self.data, o.position_tolerance, o.angle_tolerance).satisfied
 
         def done(q, branch_reports=(), attempts=(), closed=None, error=None, path=Path.NONE, seed=None,
-                 failure=None, report=None):
-            return SolveResult(q, failure is None, path, seed, failure, report, closed, tuple(branch_reports),
-                               tuple(attempts), error, correction)
+                 failure=None, report=None):  # SolveResult(q, failure is None, path, ...) without its frozen __init__
+            return frozen_instance(SolveResult, {
+                "q": q, "success": failure is None, "path": path, "seed": seed, "failure": failure,
+                "validity": report, "closed_form": closed, "branch_reports": tuple(branch_reports),
+                "attempts": tuple(attempts), "closed_form_error": error, "pose_correction": correction})
 
         branch_reports: list[BranchReport] = []
         branch_seeds: list[tuple[str, np.ndarray]] = []
@@ -298,7 +300,8 @@ class PreparedIK:
                 report = self._check(q_k)
                 hit = reached()
                 ok = direct and hit and self.accept(report)
-                branch_reports.append(BranchReport(name, path, q_k, report, hit, ok))
+                branch_reports.append(frozen_instance(BranchReport, {  # BranchReport(name, path, q_k, report, ...)
+                    "name": name, "path": path, "q": q_k, "validity": report, "reached": hit, "accepted": ok}))
                 if ok:
                     return done(q_k, branch_reports, (), closed, None, path, name, None, report)
                 branch_seeds.append((name, np.clip(q_k, lower, upper)))
