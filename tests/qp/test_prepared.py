@@ -246,3 +246,16 @@ def test_a_world_of_another_system_is_refused():
     with pytest.raises(QPIKError, match="another system"):
         qp_ik.prepare(PRESET, world=World(other))
     assert qp_ik.prepare(PRESET, world=World(PRESET)).system is PRESET
+
+
+def test_results_built_without_init_hold_every_field():
+    """PreparedIK.solve builds SolveResult and BranchReport without their __init__ (frozen_instance): every
+    field is there, and the objects equal those their __init__ builds from the same values."""
+    qs = np.random.default_rng(2).uniform(PRESET.lower, PRESET.upper, (200, 6))
+    result = REUSED.solve(PRESET.fk(qs[REUSED.reachable(qs)][0]))
+    assert result.success and result.path == qp_ik.Path.CLOSED_FORM and result.branch_reports
+    for obj in (result, *result.branch_reports):
+        fields = dataclasses.fields(obj)
+        assert set(obj.__dict__) == {f.name for f in fields}
+        assert type(obj)(**{f.name: getattr(obj, f.name) for f in fields}) == obj
+        assert dataclasses.replace(obj) == obj
