@@ -51,7 +51,7 @@ from carmkin.analytic.closed_form import (  # noqa: F401 (the names of this modu
 from carmkin.analytic.poses import pose_batch
 from carmkin.analytic.results import BatchResult, BranchStatus, IKResult  # noqa: F401
 from carmkin.analytic.singular import FAMILY_TOLERANCE  # noqa: F401
-from carmkin.analytic.solve import solve_pose, solver_for  # noqa: F401 (solver_for: of this module's contract)
+from carmkin.analytic.solve import solve_pose, solve_rows, solver_for  # noqa: F401 (solver_for: of this module's contract)
 from carmkin.errors import (  # noqa: F401 (defined there, raised here)
     AnalyticIKError,
     CarmkinError,
@@ -75,6 +75,15 @@ def solve(system, T, q_current=None) -> IKResult:
     require_system(system, UnsupportedSystemError)
     result = solve_pose(system, T, q_current)
     result._check = (_validity, system)  # a tuple: a partial costs 3x more, on every solve
+    return result
+
+
+def _solve_rows(system, T, rows, q_current=None) -> IKResult:
+    """:func:`solve` of a rigid pose ``T`` already checked by :func:`carmkin.analytic.poses.pose_rows` (its
+    ``rows``) on a system already checked: what :class:`carmkin.qp.prepared.PreparedIK` calls (the same
+    result, without checking the pose and the system a second time)."""
+    result = solve_rows(system, T, rows, 0.0, q_current)
+    result._check = (_validity, system)
     return result
 
 

@@ -390,3 +390,13 @@ def instance(value, kind: type, name: str, *, error: type[CarmkinError] = Invali
         raise error(f"{name} must be a {kind.__module__}.{kind.__qualname__}{f' ({hint})' if hint else ''}, "
                     f"got {_describe(value)}")
     return value
+
+
+def frozen_instance(cls, values: dict):
+    """An instance of the frozen dataclass ``cls`` holding ``values`` (its instance dictionary: every field by
+    name, a field stored by a descriptor under the descriptor's own key) without running the generated
+    ``__init__``, whose one ``object.__setattr__`` per field is the cost of a scalar solve's results. Only
+    for dataclasses without ``__post_init__`` or ``__slots__``, from values already of their fields' types."""
+    instance = object.__new__(cls)
+    instance.__dict__.update(values)
+    return instance

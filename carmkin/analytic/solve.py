@@ -47,8 +47,15 @@ def reference(q_current):
 def solve_pose(system, T, q_current=None) -> IKResult:
     """Both closed-form solutions of ``T`` (4x4 pose of ``xray_source`` in the table frame) on a 6-DOF
     ``system`` already known to be a :class:`carmkin.CArmSystem`; see :func:`carmkin.analytic_ik.solve`."""
-    ik = solver_for(system)
     T, rows, correction = pose_rows(T, "T")
+    return solve_rows(system, T, rows, correction, q_current)
+
+
+def solve_rows(system, T, rows, correction: float, q_current=None) -> IKResult:
+    """:func:`solve_pose` of a pose already through :func:`~carmkin.analytic.poses.pose_rows`: ``T`` (4, 4)
+    rigid, ``rows`` its nested lists, ``correction`` the projection it reported (the prepared IK checks its
+    target once, not twice)."""
+    ik = solver_for(system)
     q_ref = reference(q_current)
     q0, q1, det_j, _ = ik.angles_and_translations(rows)
     # singular: |det J| below SINGULAR_TOLERANCE (or NaN), or translations the closed form cannot give

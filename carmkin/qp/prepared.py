@@ -27,7 +27,7 @@ from carmkin.errors import CarmkinError, InvalidConfigurationError
 from carmkin.robot import validity
 from carmkin.world.tolerances import BOUND_SLACK
 from carmkin.world import Obstacle, World
-from carmkin.validation import JOINT_VALUE_LIMIT, real_array, real_scalar
+from carmkin.validation import JOINT_VALUE_LIMIT, frozen_instance, real_array, real_scalar
 
 from .backends import BACKENDS, make_backend
 from .loop import QPIK
@@ -108,6 +108,7 @@ class PreparedIK:
         self._solvers: dict[type, QPIK] = {}
         self._pairs = len(self.world) > 0
         self._geometry = pin.GeometryData(self.world.geometry_model)  # this solver's own collision data
+        self._source_pose = None  # the source pose (4, 4) of the configuration _check last checked
         for request in self._geometry.collisionRequests:
             request.security_margin = options.safety_margin + BOUND_SLACK
             request.enable_contact = False
@@ -152,8 +153,9 @@ class PreparedIK:
             pin.forwardKinematics(model, data, q)
             pairs, distances = [], []
         pin.updateFramePlacement(model, data, self._source)
+        self._source_pose = source = data.oMf[self._source].homogeneous  # q's; read by solve's pose check too
         return validity.report(self.system, q, self.world, pairs, distances, lambda: float(self.world.clearance(q)[0]),
-                               data.oMf[self._source].homogeneous, self.margin, self._bounds)
+                               source, self.margin, self._bounds)
 
     def clearance(self, qs, exact_below: float = np.inf) -> np.ndarray:
         """(N,) smallest signed pair distance (m) of each configuration of ``qs`` (N, nq) in this scene.
@@ -213,15 +215,20 @@ class PreparedIK:
                 "first seed): " + "; ".join(map(str, outside)))
         return q, q
 
-    def _closed_forms(self, pose, q_current, q_ref):
-        """``(path, result, solutions (k, nq), error)`` of the closed form that applies, or ``None``."""
+    def _closed_forms(self, pose, q_current, q_ref, rows=None):
+        """``(path, result, solutions (k, nq), error)`` of the closed form that applies, or ``None``; ``rows``:
+        the nested lists of ``pose`` when :func:`~carmkin.analytic.poses.pose_rows` has checked it."""
         system, locked = self.system, self.locked
         if self.model.nq == 6:
             if locked:
                 return None
             try:  # looked up at call time, so a stand-in module (tests) is honoured
                 facade = sys.modules.get("carmkin.analytic_ik") or importlib.import_module("carmkin.analytic_ik")
-                result = facade.solve(system, pose, q_current=q_current)
+                checked = getattr(facade, "_solve_rows", None) if rows is not None else None
+                if checked is not None:  # the pose and the system are checked already: not a second time
+                    result = checked(system, pose, rows, q_current)
+                else:
+                    result = facade.solve(system, pose, q_current=q_current)
             except CarmkinError as exc:
                 return Path.CLOSED_FORM, None, np.zeros((0, system.nq)), str(exc)
             return Path.CLOSED_FORM, result, np.asarray(result.solutions, dtype=float), None
@@ -259,16 +266,18 @@ class PreparedIK:
         o, lower, upper = self.options, self.lower, self.upper
         search = self.search
 
-        def reached() -> bool:  # the source pose in self.data (after _check) on the target
+        def reached() -> bool:  # the source pose of the configuration _check has just checked, on the target
             if rows is not None:
-                position, angle = pose_errors(self.data.oMf[self._source].homogeneous.tolist(), rows)
+                position, angle = pose_errors(self._source_pose.tolist(), rows)
                 return position <= o.position_tolerance and angle <= o.angle_tolerance
             return self._qp(kind, target).tasks[0].errors(self.data, o.position_tolerance, o.angle_tolerance).satisfied
 
         def done(q, branch_reports=(), attempts=(), closed=None, error=None, path=Path.NONE, seed=None,
-                 failure=None, report=None):
-            return SolveResult(q, failure is None, path, seed, failure, report, closed, tuple(branch_reports),
-                               tuple(attempts), error, correction)
+                 failure=None, report=None):  # SolveResult(q, failure is None, path, ...) without its frozen __init__
+            return frozen_instance(SolveResult, {
+                "q": q, "success": failure is None, "path": path, "seed": seed, "failure": failure,
+                "validity": report, "closed_form": closed, "branch_reports": tuple(branch_reports),
+                "attempts": tuple(attempts), "closed_form_error": error, "pose_correction": correction})
 
         branch_reports: list[BranchReport] = []
         branch_seeds: list[tuple[str, np.ndarray]] = []
@@ -276,7 +285,7 @@ class PreparedIK:
         found = None
         if search.closed_form:
             pose = target if isinstance(target, np.ndarray) else closed_form_pose(target, self.system.fk(q_ref))
-            found = self._closed_forms(pose, q_current, q_ref)
+            found = self._closed_forms(pose, q_current, q_ref, rows)
         if found is not None:
             path, closed, solutions, error = found
             direct = path is Path.CLOSED_FORM or not (self.weights_given and q_current is not None)
@@ -291,7 +300,8 @@ class PreparedIK:
                 report = self._check(q_k)
                 hit = reached()
                 ok = direct and hit and self.accept(report)
-                branch_reports.append(BranchReport(name, path, q_k, report, hit, ok))
+                branch_reports.append(frozen_instance(BranchReport, {  # BranchReport(name, path, q_k, report, ...)
+                    "name": name, "path": path, "q": q_k, "validity": report, "reached": hit, "accepted": ok}))
                 if ok:
                     return done(q_k, branch_reports, (), closed, None, path, name, None, report)
                 branch_seeds.append((name, np.clip(q_k, lower, upper)))

@@ -13,6 +13,7 @@ table frame 0.
 
 from __future__ import annotations
 
+import operator
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -22,7 +23,7 @@ from carmkin.errors import InvalidConfigurationError
 from carmkin.model.params import JOINT_RANGE_TOLERANCE
 from carmkin.model.system import require_system  # noqa: F401 (the solvers' one check of ``system``)
 from carmkin.transforms import segment_hits_box
-from carmkin.validation import JOINT_VALUE_LIMIT, real_array, real_scalar
+from carmkin.validation import JOINT_VALUE_LIMIT, frozen_instance, real_array, real_scalar
 from carmkin.world import DEFAULT_MARGIN, Obstacle, World, link_of
 
 from .state import KinematicState
@@ -184,8 +185,9 @@ def joint_violations(system, q: np.ndarray, bounds=None) -> tuple[JointViolation
     """The joints of ``q`` (nq,) outside their ranges (a value within the range tolerance of a limit is in);
     ``bounds``: ``(system.lower, system.upper)`` as lists when the caller holds them."""
     lower, upper = bounds if bounds is not None else (system.lower.tolist(), system.upper.tolist())
-    if all(lo <= v <= hi for lo, v, hi in zip(lower, q.tolist(), upper)):  # the usual case, on floats
-        return ()
+    values = q.tolist()
+    if all(map(operator.le, lower, values)) and all(map(operator.le, values, upper)):  # the usual case, on floats
+        return ()  # (NaN fails both comparisons: the slow path below reports it)
     return tuple(
         JointViolation(r.name if r.name != "joint" else n, float(v), float(r.excess(v)), bool(p))
         for n, r, v, p in zip(system.joint_names, system.joint_ranges, q, system.prismatic)
@@ -207,11 +209,13 @@ def report(system, q: np.ndarray, world: World, pairs, distances, min_distance,
     ``bounds`` as in :func:`joint_violations`."""
     collisions = tuple(Contact(world.pairs[k][0], world.pairs[k][1], float(d))
                        for k, d in zip(np.asarray(pairs).tolist(), np.asarray(distances).tolist())) if len(pairs) else ()
-    return ValidityReport(
-        q=q,
-        joints=joint_violations(system, q, bounds),
-        collisions=collisions,
-        table_in_cone=lambda: pose_in_cone(system, source_pose),
-        min_distance=min_distance,
-        margin=float(margin),
-    )
+    # what ValidityReport(q, joints, collisions, table_in_cone=..., min_distance=..., margin=...) stores (the
+    # deferred fields under their slots), without the frozen __init__'s cost on every checked solve
+    return frozen_instance(ValidityReport, {
+        "q": q,
+        "joints": joint_violations(system, q, bounds),
+        "collisions": collisions,
+        "_table_in_cone": lambda: pose_in_cone(system, source_pose),
+        "_min_distance": min_distance if callable(min_distance) else float(min_distance),
+        "margin": float(margin),
+    })

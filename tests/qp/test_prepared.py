@@ -73,6 +73,37 @@ def test_prepared_solve_is_qp_ik_solve(name, data):
         assert branch.validity is None or branch.validity.margin == solver.options.safety_margin
 
 
+REUSED = qp_ik.prepare(PRESET)  # one solver for every example: its coal data carries earlier queries
+
+
+@settings(max_examples=40)
+@given(configurations(beyond=0.05), configurations(), st.booleans())
+def test_a_reused_prepared_solve_is_the_unprepared_one(q, q_current, give_current):
+    """Without obstacles, on random targets (some out of range): a solver reused over many targets gives the
+    closed form's branches (analytic_ik.solve, the unchecked route), and the answer, path, seed and reports
+    of a solve prepared for this call alone; its validity is validity.check's of every pair."""
+    T = PRESET.fk(q)
+    current = q_current if give_current else None
+    mine = REUSED.solve(T, q_current=current)
+    theirs = qp_ik.solve(PRESET, T, q_current=current, world=World(PRESET))  # prepared for this call
+    closed = analytic_ik.solve(PRESET, T, q_current=current)
+    np.testing.assert_array_equal(mine.closed_form.solutions, closed.solutions)
+    assert mine.closed_form.chosen == closed.chosen and mine.closed_form.pose_correction == closed.pose_correction
+    assert len(mine.branch_reports) == len(theirs.branch_reports)
+    if qp_ik.Path.QP not in (mine.path, theirs.path):  # a QP run may part ways by coal's warm starts (see above)
+        assert (mine.success, mine.path, mine.seed, mine.failure) == (theirs.success, theirs.path, theirs.seed,
+                                                                       theirs.failure)
+        np.testing.assert_array_equal(mine.q, theirs.q)
+        for a, b in zip(mine.branch_reports, theirs.branch_reports):
+            assert (a.name, a.reached, a.accepted) == (b.name, b.reached, b.accepted)
+            np.testing.assert_array_equal(a.q, b.q)
+            if a.validity is not None:
+                same_report(a.validity, b.validity)
+                same_report(a.validity, validity.check(PRESET, a.q, margin=REUSED.margin))
+    if mine.validity is not None:
+        same_report(mine.validity, validity.check(PRESET, mine.q, margin=REUSED.margin))
+
+
 def test_one_meaning_of_valid_when_a_branch_is_inside_the_margin():
     """A pose whose closed-form branch is clear but within 10 mm of the table: every report of the result is
     at 10 mm, so a branch refused for the margin never prints 'valid'."""
@@ -215,3 +246,16 @@ def test_a_world_of_another_system_is_refused():
     with pytest.raises(QPIKError, match="another system"):
         qp_ik.prepare(PRESET, world=World(other))
     assert qp_ik.prepare(PRESET, world=World(PRESET)).system is PRESET
+
+
+def test_results_built_without_init_hold_every_field():
+    """PreparedIK.solve builds SolveResult and BranchReport without their __init__ (frozen_instance): every
+    field is there, and the objects equal those their __init__ builds from the same values."""
+    qs = np.random.default_rng(2).uniform(PRESET.lower, PRESET.upper, (200, 6))
+    result = REUSED.solve(PRESET.fk(qs[REUSED.reachable(qs)][0]))
+    assert result.success and result.path == qp_ik.Path.CLOSED_FORM and result.branch_reports
+    for obj in (result, *result.branch_reports):
+        fields = dataclasses.fields(obj)
+        assert set(obj.__dict__) == {f.name for f in fields}
+        assert type(obj)(**{f.name: getattr(obj, f.name) for f in fields}) == obj
+        assert dataclasses.replace(obj) == obj

@@ -154,3 +154,26 @@ def test_reasons_are_rendered_from_the_fields_in_mm_and_degrees():
                               NOT_IN_CONE)
     assert not report.valid and not report.reachable
     assert str(report) == "invalid at margin 10 mm: " + "; ".join(report.reasons)
+
+
+@settings(max_examples=30)
+@given(st.lists(st.floats(-3.0, 3.0), min_size=6, max_size=6), st.floats(0.0, 0.05), st.booleans())
+def test_report_is_the_dataclass_built_by_its_init(values, margin, deferred):
+    """validity.report builds its frozen ValidityReport without the generated __init__ (carmkin.validation
+    .frozen_instance): the same stored state, fields, equality and text as ValidityReport(...) gives, for
+    in- and out-of-range joints, flagged pairs, and values given as numbers or as functions."""
+    q = np.array(values)
+    world = World(PRESET)
+    source = PRESET.fk(np.clip(q, PRESET.lower, PRESET.upper))
+    cone = validity.pose_in_cone(PRESET, source)
+    smallest = (lambda: -0.002) if deferred else -0.002
+    fast = validity.report(PRESET, q, world, [1], [-0.002], smallest, source, margin)
+    slow = validity.ValidityReport(q=q, joints=validity.joint_violations(PRESET, q),
+                                   collisions=(validity.Contact(*world.pairs[1], -0.002),),
+                                   table_in_cone=lambda: cone, min_distance=smallest, margin=margin)
+    assert type(fast) is validity.ValidityReport
+    assert fast.__dict__.keys() == slow.__dict__.keys()
+    assert (fast.joints, fast.collisions, fast.margin) == (slow.joints, slow.collisions, slow.margin)
+    assert (fast.table_in_cone, fast.min_distance, fast.valid, fast.reachable) == (
+        slow.table_in_cone, slow.min_distance, slow.valid, slow.reachable)
+    assert str(fast) == str(slow) and fast == slow
