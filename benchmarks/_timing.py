@@ -34,3 +34,28 @@ def per_target_medians(call: Callable[[object], object], targets, inner: int = 2
             call(target)
         times.append((time.perf_counter() - start) / inner)
     return statistics.median(times)
+
+
+def paired_ratio(baseline: Callable[[object], object], candidate: Callable[[object], object], targets,
+                 inner: int = 20, rounds: int = 5) -> tuple[float, float, float]:
+    """``candidate`` against ``baseline`` timed side by side on each target: ``rounds`` alternating runs of
+    ``inner`` calls each, the fastest run of each kept (the machine's other load only ever adds time), their
+    ratio per target; returns the medians over targets of the baseline's and the candidate's time (s) and of
+    the per-target ratio. On a shared machine whose load drifts, timing the two at different moments (two
+    :func:`per_target_medians`) moved the ratio by 2x between runs; pairing them cancels the drift."""
+
+    def best(call, target) -> float:
+        start = time.perf_counter()
+        for _ in range(inner):
+            call(target)
+        return (time.perf_counter() - start) / inner
+
+    base, cand, ratios = [], [], []
+    for target in targets:
+        b = c = float("inf")
+        for _ in range(rounds):
+            b, c = min(b, best(baseline, target)), min(c, best(candidate, target))
+        base.append(b)
+        cand.append(c)
+        ratios.append(c / b)
+    return statistics.median(base), statistics.median(cand), statistics.median(ratios)
