@@ -24,6 +24,15 @@ def test_committed_without_outputs(path):
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
+def test_every_cell_has_an_id(path):
+    """nbformat 4.5 cells carry an id: a cell without one makes nbformat warn (MissingIDFieldWarning) when
+    --nbmake runs the notebook, and CI fails on any warning."""
+    notebook = json.loads(path.read_text())
+    if (notebook["nbformat"], notebook["nbformat_minor"]) >= (4, 5):
+        assert all("id" in c for c in notebook["cells"]), f"{path.name}: a cell without an id"
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
 def test_plots_are_shown_inline(path):
     source = code(path)
     assert not re.search(r"""matplotlib\.use\(\s*['"]Agg""", source), "a non-interactive backend hides every plot"
