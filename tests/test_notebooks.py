@@ -1,6 +1,7 @@
 """The notebooks are committed clean and show their plots inline (CI executes them with nbmake)."""
 
 import json
+import os
 import re
 from pathlib import Path
 
@@ -92,6 +93,8 @@ def test_every_figure_cell_shows_its_figure(path):
     pytest.importorskip("nbclient")
     skip_without_figure_extras(path)
     if not _hooks().cached_path(path).exists():
+        # CI builds the site in this environment first and says so: a missing copy is then a cache-key bug
+        assert not os.environ.get("CARMKIN_SITE_BUILT"), f"the site build's executed copy of {path.name} is missing"
         pytest.skip(f"{path.name}'s figures are checked on the site build's executed copy: python -m mkdocs build first")
     executed, _ = _hooks().execute(path)
     cells = [c for c in json.loads(executed.read_text())["cells"] if c["cell_type"] == "code"]

@@ -79,7 +79,8 @@ def _sources_digest() -> str:
     from importlib.metadata import distributions
 
     digest = hashlib.sha256()
-    installed = sorted(f"{d.metadata['Name']}=={d.version}" for d in distributions() if d.metadata["Name"])
+    # a set: ``python -m pytest`` puts the checkout on sys.path, where carmkin.egg-info lists carmkin a second time
+    installed = sorted({f"{d.metadata['Name']}=={d.version}" for d in distributions() if d.metadata["Name"]})
     digest.update("\n".join(installed).encode())
     for folder in ("carmkin", "viz", "urdf"):
         for path in sorted((ROOT / folder).rglob("*")):
