@@ -110,7 +110,8 @@ def pytest_sessionfinish(session):
 
 def _keep_only_listed(config, items) -> None:
     listed = Path(os.environ["CARMKIN_RUN_ONLY"]).read_text().split("\n")
-    listed = tuple(node for node in listed if node)
-    keep = [item for item in items if item.nodeid in listed or item.nodeid.startswith(tuple(n + "::" for n in listed))]
-    config.hook.pytest_deselected(items=[item for item in items if item not in keep])
-    items[:] = keep
+    listed = {node for node in listed if node}
+    modules = tuple(node + "::" for node in listed)  # a module's id keeps all its tests
+    keep = [item.nodeid in listed or item.nodeid.startswith(modules) for item in items]
+    config.hook.pytest_deselected(items=[item for item, kept in zip(items, keep) if not kept])
+    items[:] = [item for item, kept in zip(items, keep) if kept]

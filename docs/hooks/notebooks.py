@@ -72,7 +72,7 @@ def unexecuted_copy(path: Path, reason: str) -> str:
     return nbformat.writes(notebook)
 
 
-def _sources_digest() -> str:
+def _environment_digest() -> str:
     """A hash of carmkin's sources and of the environment's installed distributions (name and version): a
     notebook that prints "rendering skipped" without an extra must not be served from the cache to an environment
     that has the extra (CI builds the site first with the docs extra alone, then with every extra)."""
@@ -89,19 +89,19 @@ def _sources_digest() -> str:
     return digest.hexdigest()
 
 
-def cached_path(path: Path, sources: str | None = None) -> Path:
+def cached_path(path: Path, environment: str | None = None) -> Path:
     """Where the executed copy of ``path`` is cached (whether or not it exists yet)."""
-    key = hashlib.sha256(path.read_bytes() + (sources or _sources_digest()).encode()).hexdigest()[:16]
+    key = hashlib.sha256(path.read_bytes() + (environment or _environment_digest()).encode()).hexdigest()[:16]
     return CACHE / f"{path.stem}-{key}.ipynb"
 
 
-def execute(path: Path, sources: str | None = None) -> tuple[Path, float]:
+def execute(path: Path, environment: str | None = None) -> tuple[Path, float]:
     """The executed copy of notebook ``path`` (cached) and the seconds its execution took (0 from the cache).
     Raises ``nbclient.exceptions.CellExecutionError`` when a cell fails."""
     import nbformat
     from nbclient import NotebookClient
 
-    target = cached_path(path, sources)
+    target = cached_path(path, environment)
     if target.exists():
         return target, 0.0
     notebook = nbformat.read(path, as_version=4)
@@ -119,10 +119,10 @@ def execute(path: Path, sources: str | None = None) -> tuple[Path, float]:
 
 def execute_all(paths: list[Path], workers: int | None = None) -> dict[Path, tuple[Path, float]]:
     """Execute ``paths`` in parallel; ``{notebook: (executed copy, seconds)}``; the first failure is raised."""
-    sources = _sources_digest()
+    environment = _environment_digest()
     workers = workers or max(1, min(len(paths), os.cpu_count() or 1))
     with ThreadPoolExecutor(workers) as pool:
-        futures = {p: pool.submit(execute, p, sources) for p in paths}
+        futures = {p: pool.submit(execute, p, environment) for p in paths}
         return {p: f.result() for p, f in futures.items()}
 
 
